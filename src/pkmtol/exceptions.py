@@ -1,0 +1,195 @@
+"""Every user-facing failure of pkmtol, rooted at :class:`PkmtolError`.
+
+Each message says what was wrong and what to do about it. Subclasses carry the data that
+identifies the culprit (limb, joint, target, file) as attributes so that callers can react
+programmatically.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+
+class PkmtolError(Exception):
+    """Base class of every error raised by pkmtol on bad input or an impossible request."""
+
+
+# --- mechanism description -------------------------------------------------------------
+
+
+class MechanismFormatError(PkmtolError):
+    """The mechanism description (TOML) is missing a key, has a mistyped value, or is inconsistent.
+
+    Attributes:
+        path: The offending file.
+        key: Dotted key of the offending entry (e.g. ``limbs[2].actuated``).
+    """
+
+    def __init__(self, path: Path | str, key: str, problem: str) -> None:
+        self.path = Path(path)
+        self.key = key
+        super().__init__(f"{self.path}: key '{key}': {problem}")
+
+
+class URDFError(PkmtolError):
+    """A limb URDF is missing, malformed, or does not describe a serial limb pkmtol can use.
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file (None when the limb came from a ``pin.Model``).
+    """
+
+    def __init__(self, limb: str, path: Path | str | None, problem: str) -> None:
+        self.limb = limb
+        self.path = None if path is None else Path(path)
+        where = f" ({self.path})" if self.path is not None else ""
+        super().__init__(f"limb '{limb}'{where}: {problem}")
+
+
+class UnknownJointError(PkmtolError):
+    """A joint named in the description does not exist in the limb.
+
+    Attributes:
+        limb: Name of the limb.
+        joint: The unknown joint name.
+        available: The joint names the limb does have.
+    """
+
+    def __init__(self, limb: str, joint: str, available: Sequence[str], source: str = "") -> None:
+        self.limb = limb
+        self.joint = joint
+        self.available = tuple(available)
+        src = f" is not in {source}" if source else " does not exist"
+        super().__init__(
+            f"limb '{limb}': joint '{joint}' listed as actuated{src} "
+            f"(joints: {', '.join(self.available)}); fix the name in mechanism.toml"
+        )
+
+
+class PlatformMismatchError(PkmtolError):
+    """The limbs' platform frames do not coincide at the nominal (zero) configuration or at closure.
+
+    Attributes:
+        limb: The limb whose platform frame disagrees with the first limb's.
+        distance_m: Translation mismatch [m].
+        angle_rad: Rotation mismatch [rad].
+    """
+
+    def __init__(self, limb: str, reference: str, distance_m: float, angle_rad: float) -> None:
+        self.limb = limb
+        self.distance_m = distance_m
+        self.angle_rad = angle_rad
+        super().__init__(
+            f"limb '{limb}': its platform frame cannot be made to coincide with limb "
+            f"'{reference}' (closest mismatch {distance_m * 1e3:.3g} mm, {angle_rad:.3g} rad); "
+            "check that every limb URDF ends in the same platform link placed at the same "
+            "platform frame"
+        )
+
+
+# --- kinematics -------------------------------------------------------------------------
+
+
+class KinematicsError(PkmtolError):
+    """Base class of closed-chain kinematics failures."""
+
+
+class UnreachableTargetError(KinematicsError):
+    """No closed-chain configuration reaches the target.
+
+    Attributes:
+        target_m: The requested position of the reference point P in frame K [m], shape (3,).
+        limb: The limb that could not follow (None if undetermined).
+    """
+
+    def __init__(self, target_m: np.ndarray, problem: str, limb: str | None = None) -> None:
+        self.target_m = np.asarray(target_m, dtype=float).copy()
+        self.limb = limb
+        who = f"limb '{limb}': " if limb else ""
+        super().__init__(
+            f"{who}target P = {_fmt_mm(self.target_m)} is unreachable: {problem}; "
+            "move the target (or the task space) inside the workspace, or widen the joint limits"
+        )
+
+
+class JointLimitError(UnreachableTargetError):
+    """The closed chain reaches the target only with a joint outside its URDF limits.
+
+    Attributes:
+        joint: Name of the joint.
+        value: Its value [rad or m].
+        lower: Lower limit [rad or m].
+        upper: Upper limit [rad or m].
+    """
+
+    def __init__(
+        self, target_m: np.ndarray, limb: str, joint: str, value: float, lower: float, upper: float
+    ) -> None:
+        self.joint = joint
+        self.value = value
+        self.lower = lower
+        self.upper = upper
+        super().__init__(
+            target_m,
+            f"joint '{joint}' would be at {value:.6g}, outside its limits [{lower:.6g}, {upper:.6g}]",
+            limb=limb,
+        )
+
+
+class ConvergenceError(KinematicsError):
+    """Newton's method did not converge.
+
+    Attributes:
+        residual: Final residual norm (m, rad mixed).
+        iterations: Iterations spent.
+    """
+
+    def __init__(self, what: str, residual: float, iterations: int) -> None:
+        self.residual = residual
+        self.iterations = iterations
+        super().__init__(
+            f"{what}: Newton's method stopped at residual {residual:.3g} after {iterations} "
+            "iterations; try a closer initial guess or a target further from the workspace boundary"
+        )
+
+
+class SingularPoseError(KinematicsError):
+    """The configuration is singular (or nearly so): the linear error model is not defined there.
+
+    Attributes:
+        target_m: Position of P in K [m] (None if not a task-space solve).
+        condition: Condition number of the offending matrix.
+        what: Which matrix is singular (``closure Jacobian`` or ``wrench matrix W``).
+    """
+
+    def __init__(self, what: str, condition: float, target_m: np.ndarray | None = None) -> None:
+        self.what = what
+        self.condition = condition
+        self.target_m = None if target_m is None else np.asarray(target_m, float).copy()
+        at = f" at P = {_fmt_mm(self.target_m)}" if self.target_m is not None else ""
+        super().__init__(
+            f"singular configuration{at}: {what} has condition number {condition:.3g}; "
+            "keep the task space away from this pose or change the dimensions"
+        )
+
+
+# --- user requests ----------------------------------------------------------------------
+
+
+class InvalidRequestError(PkmtolError, ValueError):
+    """A numeric request is out of range (non-positive target, beta or sample count, ...)."""
+
+
+class OutputError(PkmtolError):
+    """An output file or folder cannot be written. Nothing has been written when this is raised."""
+
+    def __init__(self, path: Path | str, problem: str) -> None:
+        self.path = Path(path)
+        super().__init__(f"cannot write {self.path}: {problem}")
+
+
+def _fmt_mm(p_m: np.ndarray) -> str:
+    return "(" + ", ".join(f"{1e3 * x:.3f}" for x in p_m) + ") mm"

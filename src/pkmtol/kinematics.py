@@ -1,0 +1,300 @@
+"""Closed-chain kinematics on Pinocchio: inverse (task → all joints) and forward (actuators → pose).
+
+Unknowns are the joint values of every limb. Closure equations make every limb's platform frame
+coincide with limb 0's: ``r_i = log6(oMp_0⁻¹ · oMp_i) = 0`` (6 each, in limb 0's platform frame).
+The inverse problem adds the task ``oMp_0 · P − target = 0`` (3, in K) and frees every joint; the
+forward problem frees only the passive joints. Newton's method with the exact Jacobian
+(``Jlog6`` and Pinocchio's frame Jacobians) converges quadratically; over-determined systems
+(over-constrained mechanisms) are solved in the least-squares sense.
+
+Geometric errors enter through :func:`perturbed_limb_models`: joint placements
+``jointPlacements[j] · exp6(ε_j)``, the platform attachment ``placement · exp6(ε_e)`` and joint
+zero offsets ``q_actual = q + δq`` (DESIGN.md, "Geometric error parameters").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.exceptions import (
+    ConvergenceError,
+    JointLimitError,
+    PlatformMismatchError,
+    SingularPoseError,
+    UnreachableTargetError,
+)
+from pkmtol.mechanism import Mechanism
+
+#: Closure/task residual at which Newton stops [m, rad].
+TOLERANCE = 1e-13
+#: Condition number of the closure Jacobian above which a pose is called singular.
+SINGULAR_CONDITION = 1e8
+MAX_ITERATIONS = 40
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """A closed-chain configuration.
+
+    Attributes:
+        q: Joint values of each limb, shape (nq_i,) each [rad or m].
+        oMp: Platform placement in K (limb 0's platform frame), ``pin.SE3``.
+        p_m: Position of the reference point P in K, shape (3,) [m].
+        residual: Norm of the closure residual at the solution [m, rad].
+        condition: Condition number of the closure(+task) Jacobian at the solution.
+    """
+
+    q: tuple[np.ndarray, ...]
+    oMp: pin.SE3
+    p_m: np.ndarray
+    residual: float
+    condition: float
+
+    @property
+    def q_all(self) -> np.ndarray:
+        """All joint values concatenated in limb order, shape (Σ nq_i,)."""
+        return np.concatenate(self.q)
+
+
+class ClosedChain:
+    """Solver workspace for one mechanism (one ``pin.Data`` per limb; not thread-safe).
+
+    Args:
+        mechanism: The mechanism.
+        models: Optional replacement limb models (e.g. perturbed), same structure as the limbs'.
+        check_limits: Check URDF joint limits of every solution.
+    """
+
+    def __init__(
+        self,
+        mechanism: Mechanism,
+        models: Sequence[pin.Model] | None = None,
+        check_limits: bool = True,
+    ) -> None:
+        self.mechanism = mechanism
+        self.models = list(models) if models is not None else [lb.model for lb in mechanism.limbs]
+        self.datas = [m.createData() for m in self.models]
+        self.fids = [lb.platform_frame for lb in mechanism.limbs]
+        self.sizes = [lb.nq for lb in mechanism.limbs]
+        self.offsets = np.cumsum([0] + self.sizes)
+        self.p_ref = np.asarray(mechanism.reference_point_m, dtype=float)
+        self.check_limits = check_limits
+        self.actuated_idx = np.array(
+            [self.offsets[i] + a for i, lb in enumerate(mechanism.limbs) for a in lb.actuated], dtype=int
+        )
+        self.lower = np.concatenate([m.lowerPositionLimit for m in self.models])
+        self.upper = np.concatenate([m.upperPositionLimit for m in self.models])
+        n_rows = 6 * (len(self.models) - 1)
+        self._jac = np.zeros((n_rows + 3, int(self.offsets[-1])))
+        self._res = np.zeros(n_rows + 3)
+
+    # --- public ---------------------------------------------------------------------------
+
+    def home(self) -> np.ndarray:
+        """Home configuration refined to exact closure, shape (Σ nq,).
+
+        The actuators stay at their ``home`` values; the passive joints are solved.
+
+        Raises:
+            PlatformMismatchError: the limbs cannot be closed near ``home``.
+        """
+        q0 = np.concatenate([lb.home for lb in self.mechanism.limbs])
+        free = np.ones(q0.size, dtype=bool)
+        free[self.actuated_idx] = False
+        try:
+            q, _ = self._newton(q0, free, None, "home closure")
+        except (ConvergenceError, SingularPoseError) as err:
+            raise PlatformMismatchError(*self._worst_limb(q0)) from err
+        return q
+
+    def inverse(self, target_m: np.ndarray, q0: np.ndarray | None = None) -> Pose:
+        """All joint values and the platform pose that put P at ``target_m``.
+
+        Args:
+            target_m: Position of P in K, shape (3,) [m].
+            q0: Initial guess (Σ nq,) (default: refined home).
+
+        Raises:
+            UnreachableTargetError: Newton does not converge (target outside the workspace).
+            JointLimitError: the solution violates a URDF joint limit.
+            SingularPoseError: the closure Jacobian is singular at the solution.
+        """
+        target = np.asarray(target_m, dtype=float)
+        if q0 is None:
+            q0 = self.home()
+        free = np.ones(q0.size, dtype=bool)
+        try:
+            q, cond = self._newton(q0, free, target, "inverse kinematics")
+        except ConvergenceError as err:
+            raise UnreachableTargetError(
+                target, f"the closure equations have no solution near the initial guess ({err.residual:.2g} left)"
+            ) from err
+        except SingularPoseError as err:
+            raise SingularPoseError(err.what, err.condition, target) from err
+        self._check_limits(q, target)
+        return self._pose(q, cond)
+
+    def forward(
+        self,
+        q_actuated: np.ndarray,
+        q0: np.ndarray,
+        offsets: np.ndarray | None = None,
+    ) -> Pose:
+        """Platform pose and passive joints for given actuator values.
+
+        Args:
+            q_actuated: Actuator readings, in the order of ``actuated_idx`` [rad or m].
+            q0: Initial guess for all joints (Σ nq,).
+            offsets: Joint zero offsets δq (Σ nq,): the actual joint value is reading + δq.
+                Only the actuated entries matter (a passive offset relabels a passive joint).
+
+        Returns:
+            The pose; ``q`` holds the *actual* joint values.
+        """
+        q = np.array(q0, dtype=float)
+        q[self.actuated_idx] = q_actuated
+        if offsets is not None:
+            q[self.actuated_idx] += offsets[self.actuated_idx]
+        free = np.ones(q.size, dtype=bool)
+        free[self.actuated_idx] = False
+        q, cond = self._newton(q, free, None, "forward kinematics")
+        return self._pose(q, cond)
+
+    def platform_placements(self, q: np.ndarray) -> list[pin.SE3]:
+        """Each limb's platform placement in K at joint values ``q`` (Σ nq,)."""
+        out = []
+        for i, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
+            pin.framesForwardKinematics(m, d, q[self.offsets[i] : self.offsets[i + 1]])
+            out.append(d.oMf[self.fids[i]].copy())
+        return out
+
+    # --- internals ------------------------------------------------------------------------
+
+    def _pose(self, q: np.ndarray, cond: float) -> Pose:
+        oMp = self.platform_placements(q)
+        res = max(
+            float(np.linalg.norm(pin.log6(oMp[0].inverse() * m).vector)) for m in oMp[1:]
+        ) if len(oMp) > 1 else 0.0
+        qs = tuple(q[self.offsets[i] : self.offsets[i + 1]].copy() for i in range(len(self.models)))
+        return Pose(q=qs, oMp=oMp[0], p_m=oMp[0].act(self.p_ref), residual=res, condition=cond)
+
+    def _evaluate(self, q: np.ndarray, target: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian (all columns) of closure (+ task) at ``q``."""
+        jac, res = self._jac, self._res
+        jac[:] = 0.0
+        placements, jacs = [], []
+        for i, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
+            qi = q[self.offsets[i] : self.offsets[i + 1]]
+            pin.computeJointJacobians(m, d, qi)  # also the joint placements oMi
+            placements.append(pin.updateFramePlacement(m, d, self.fids[i]))
+            jacs.append(pin.getFrameJacobian(m, d, self.fids[i], pin.LOCAL))
+        m0 = placements[0]
+        j0 = jacs[0]
+        c0 = slice(self.offsets[0], self.offsets[1])
+        for i in range(1, len(self.models)):
+            e = m0.actInv(placements[i])
+            rows = slice(6 * (i - 1), 6 * i)
+            res[rows] = pin.log6(e).vector
+            jl = pin.Jlog6(e)
+            jac[rows, self.offsets[i] : self.offsets[i + 1]] = jl @ jacs[i]
+            jac[rows, c0] = -(jl @ e.inverse().toActionMatrix()) @ j0
+        n = 6 * (len(self.models) - 1)
+        if target is None:
+            return res[:n], jac[:n]
+        p = m0.act(self.p_ref)
+        res[n:] = p - target
+        rot = m0.rotation
+        jac[n:, c0] = rot @ (j0[:3] - pin.skew(self.p_ref) @ j0[3:])
+        return res, jac
+
+    def _newton(
+        self, q0: np.ndarray, free: np.ndarray, target: np.ndarray | None, what: str
+    ) -> tuple[np.ndarray, float]:
+        q = np.array(q0, dtype=float)
+        res_norm = np.inf
+        for it in range(MAX_ITERATIONS):
+            res, jac = self._evaluate(q, target)
+            a = jac[:, free]
+            res_norm = float(np.max(np.abs(res)))
+            if res_norm < TOLERANCE or (it > 0 and res_norm < 1e-11 and res_norm >= prev_norm):
+                s = np.linalg.svd(a, compute_uv=False)
+                cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
+                if a.shape[0] < a.shape[1] or cond > SINGULAR_CONDITION:
+                    raise SingularPoseError(f"the {what} Jacobian", cond)
+                return q, cond
+            if a.shape[0] == a.shape[1]:
+                try:
+                    step = np.linalg.solve(a, res)
+                except np.linalg.LinAlgError:
+                    step = np.linalg.lstsq(a, res, rcond=None)[0]
+            else:
+                step = np.linalg.lstsq(a, res, rcond=None)[0]
+            # limit huge steps far from the solution (keeps Newton on the same assembly branch)
+            big = np.max(np.abs(step))
+            if big > 0.5:
+                step *= 0.5 / big
+            q[free] -= step
+            prev_norm = res_norm
+        s = np.linalg.svd(self._evaluate(q, target)[1][:, free], compute_uv=False)
+        cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
+        if cond > SINGULAR_CONDITION:
+            raise SingularPoseError(f"the {what} Jacobian", cond)
+        raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
+
+    def _check_limits(self, q: np.ndarray, target: np.ndarray) -> None:
+        if not self.check_limits:
+            return
+        bad = np.flatnonzero((q < self.lower - 1e-12) | (q > self.upper + 1e-12))
+        if bad.size:
+            k = int(bad[0])
+            i = int(np.searchsorted(self.offsets, k, side="right") - 1)
+            limb = self.mechanism.limbs[i]
+            j = k - int(self.offsets[i])
+            raise JointLimitError(
+                target, limb.name, limb.joint_names[j], float(q[k]), float(self.lower[k]), float(self.upper[k])
+            )
+
+    def _worst_limb(self, q: np.ndarray) -> tuple[str, str, float, float]:
+        oMp = self.platform_placements(q)
+        worst = (self.mechanism.limbs[0].name, self.mechanism.limbs[0].name, 0.0, 0.0)
+        best = -1.0
+        for lb, m in zip(self.mechanism.limbs[1:], oMp[1:], strict=True):
+            err = pin.log6(oMp[0].inverse() * m).vector
+            size = float(np.linalg.norm(err))
+            if size > best:
+                best = size
+                worst = (lb.name, self.mechanism.limbs[0].name, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])))
+        return worst
+
+
+def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> list[pin.Model]:
+    """Copies of the limb models with joint-placement and platform-attachment errors.
+
+    Args:
+        mechanism: The nominal mechanism.
+        eps: Per limb, shape (nq_i + 1, 6): ``ε`` of each joint origin then of the platform
+            attachment, each ``(dx, dy, dz, rx, ry, rz)`` in that origin's frame [m, rad].
+
+    Returns:
+        Models with ``jointPlacements[j] · exp6(ε_j)`` and platform frame ``placement · exp6(ε_e)``.
+    """
+    out = []
+    for limb, e in zip(mechanism.limbs, eps, strict=True):
+        m = limb.model.copy()
+        e = np.asarray(e, dtype=float)
+        for j in range(1, m.njoints):
+            m.jointPlacements[j] = limb.model.jointPlacements[j] * pin.exp6(e[j - 1])
+        delta = pin.exp6(e[-1])
+        ids = {limb.platform_frame}
+        if m.existFrame(limb.attach_name):
+            ids.add(m.getFrameId(limb.attach_name))
+        for fid in ids:
+            fr = m.frames[fid]
+            fr.placement = limb.model.frames[fid].placement * delta
+            m.frames[fid] = fr
+        out.append(m)
+    return out

@@ -1,0 +1,58 @@
+"""Units: parsing of user-given lengths and the human-facing unit of each error parameter.
+
+Inside pkmtol everything is SI (m, rad). Tables shown to people state their unit in the header:
+lengths in mm or µm, angles in mrad (DESIGN.md, "Units").
+"""
+
+from __future__ import annotations
+
+import re
+
+from pkmtol.exceptions import InvalidRequestError
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6}
+
+#: Display scale of each SI unit in tables: (factor from SI, display unit).
+DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+
+_NUMBER_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµμ]*)\s*$")
+
+
+def parse_length(value: str | float | int, what: str = "length") -> float:
+    """Parse a length such as ``"0.05 mm"``, ``"50um"`` or ``5e-5`` (bare numbers are metres).
+
+    Returns:
+        The length [m].
+
+    Raises:
+        InvalidRequestError: the text is not a number with a known length unit.
+
+    >>> parse_length("0.05 mm")
+    5e-05
+    >>> parse_length("50 um")
+    5e-05
+    """
+    if isinstance(value, bool):
+        raise InvalidRequestError(f"{what}: expected a length such as '0.05 mm', got {value!r}")
+    if isinstance(value, int | float):
+        return float(value)
+    m = _NUMBER_UNIT.match(str(value))
+    if not m:
+        raise InvalidRequestError(f"{what}: cannot read {value!r}; write it as e.g. '0.05 mm' or '50 um'")
+    number, unit = m.groups()
+    unit = unit or "m"
+    if unit not in LENGTH_UNITS:
+        raise InvalidRequestError(
+            f"{what}: unknown unit {unit!r} in {value!r}; use one of {', '.join(LENGTH_UNITS)}"
+        )
+    return float(number) * LENGTH_UNITS[unit]
+
+
+def display(value_si: float, unit_si: str) -> float:
+    """Convert an SI value of unit ``"m"`` or ``"rad"`` to its display unit (mm, mrad)."""
+    return value_si * DISPLAY[unit_si][0]
+
+
+def display_unit(unit_si: str) -> str:
+    """The display unit (``"mm"`` or ``"mrad"``) of an SI unit."""
+    return DISPLAY[unit_si][1]
