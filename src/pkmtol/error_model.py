@@ -1,0 +1,201 @@
+"""Geometric error parameters of every limb and their error twists (paper Eqs. 1–4).
+
+Two parameter sets (DESIGN.md, "Geometric error parameters"):
+
+* ``urdf``: every joint origin, the platform attachment included, perturbed as
+  ``origin · exp6(ε)`` with ``ε = (dx, dy, dz, rx, ry, rz)`` in the origin's frame, plus each
+  joint's zero offset ``q_actual = q + δq``. Names ``<limb>.<joint>.<component>``.
+* ``dh``: for limbs with a D–H table, the paper's ``δθ_j, δd_j, δa_j, δφ_j`` per link and
+  ``δd_e, δθ_e`` for the end link (named ``δd_{j,i}`` with ``i`` the 1-based limb number); the
+  actuated joint's zero offset is named ``ξ_{a,i}`` (the paper's Table IV).
+
+Every parameter is a fixed linear combination of "raw" limb errors: the 6 components of each
+origin error (``6·(nq+1)`` of them, last block the platform attachment) and the ``nq`` joint
+offsets. At a pose, the raw columns are Pinocchio's kinematic regressor (origin errors, which
+``computeFrameKinematicRegressor`` linearises exactly as ``jointPlacements[j] · exp6(ε)``), the
+identity (platform attachment) and the frame Jacobian (offsets), all in the platform frame; they
+are then expressed in K' (``diag(R, R)``, i.e. Pinocchio's LOCAL_WORLD_ALIGNED).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.dh import dh_error_directions
+from pkmtol.exceptions import InvalidRequestError
+from pkmtol.mechanism import Limb, Mechanism
+
+COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
+PARAMETER_SETS = ("urdf", "dh")
+
+
+@dataclass(frozen=True)
+class ErrorParameter:
+    """One geometric error parameter.
+
+    Attributes:
+        name: Where it lives (``limb4.limb4_u1.dx``, ``δd_{2,4}``, ``ξ_{a,1}``).
+        limb: Index of its limb in ``mechanism.limbs``.
+        unit: ``"m"`` or ``"rad"``.
+        actuator: True for the zero offset of an actuated joint (the paper's ξ_a).
+    """
+
+    name: str
+    limb: int
+    unit: str
+    actuator: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterSet:
+    """A named set of error parameters and how each maps to raw limb errors.
+
+    Attributes:
+        kind: ``"urdf"`` or ``"dh"``.
+        parameters: All parameters, limb by limb.
+        selections: Per limb, shape ``(6·(nq+1) + nq, m_i)``: column ``k`` is parameter ``k`` of the
+            limb as a combination of raw errors (origin components, then joint offsets).
+        slices: Per limb, the slice of ``parameters`` that belongs to it.
+    """
+
+    kind: str
+    parameters: tuple[ErrorParameter, ...]
+    selections: tuple[np.ndarray, ...]
+    slices: tuple[slice, ...]
+
+    def __len__(self) -> int:
+        return len(self.parameters)
+
+    @property
+    def names(self) -> list[str]:
+        """Parameter names in order."""
+        return [p.name for p in self.parameters]
+
+    @property
+    def units(self) -> list[str]:
+        """Parameter units in order."""
+        return [p.unit for p in self.parameters]
+
+    def perturbation(self, eta: np.ndarray, mechanism: Mechanism) -> tuple[list[np.ndarray], np.ndarray]:
+        """Split a parameter vector into origin errors and joint offsets.
+
+        Args:
+            eta: Parameter values, shape (n,) [m, rad].
+            mechanism: The mechanism this set belongs to.
+
+        Returns:
+            ``(eps, offsets)``: per limb ``ε`` of shape (nq_i + 1, 6) for
+            :func:`pkmtol.kinematics.perturbed_limb_models`, and joint offsets (Σ nq_i,).
+        """
+        eps, offsets = [], []
+        for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
+            raw = sel @ eta[sl]
+            n_orig = 6 * (limb.nq + 1)
+            eps.append(raw[:n_orig].reshape(limb.nq + 1, 6))
+            offsets.append(raw[n_orig:])
+        return eps, np.concatenate(offsets)
+
+
+def parameter_set(mechanism: Mechanism, kind: str = "urdf") -> ParameterSet:
+    """The ``urdf`` or ``dh`` parameter set of a mechanism.
+
+    Raises:
+        InvalidRequestError: unknown kind, or ``dh`` asked for a limb without a D–H table.
+    """
+    if kind == "urdf":
+        per_limb = [_urdf_limb(i, limb) for i, limb in enumerate(mechanism.limbs)]
+    elif kind == "dh":
+        missing = [lb.name for lb in mechanism.limbs if lb.dh is None]
+        if missing:
+            raise InvalidRequestError(
+                f"the dh parameter set needs a D–H table for every limb; missing for "
+                f"{', '.join(missing)} (add [limbs.dh] in mechanism.toml or use --set urdf)"
+            )
+        per_limb = [_dh_limb(i, limb) for i, limb in enumerate(mechanism.limbs)]
+    else:
+        raise InvalidRequestError(f"unknown parameter set {kind!r}; use one of {', '.join(PARAMETER_SETS)}")
+    params: list[ErrorParameter] = []
+    sels, slices = [], []
+    for plist, sel in per_limb:
+        slices.append(slice(len(params), len(params) + len(plist)))
+        params.extend(plist)
+        sels.append(sel)
+    return ParameterSet(kind=kind, parameters=tuple(params), selections=tuple(sels), slices=tuple(slices))
+
+
+def default_set(mechanism: Mechanism) -> str:
+    """``dh`` when every limb has a D–H table, else ``urdf``."""
+    return "dh" if all(lb.dh is not None for lb in mechanism.limbs) else "urdf"
+
+
+def _urdf_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
+    nq = limb.nq
+    n_raw = 6 * (nq + 1) + nq
+    params: list[ErrorParameter] = []
+    origins = list(limb.joint_names) + [limb.attach_name]
+    for k, oname in enumerate(origins):
+        for c, comp in enumerate(COMPONENTS):
+            params.append(ErrorParameter(f"{limb.name}.{oname}.{comp}", i, "m" if c < 3 else "rad"))
+    for k, jname in enumerate(limb.joint_names):
+        unit = "rad" if limb.joint_kinds[k] == "R" else "m"
+        params.append(ErrorParameter(f"{limb.name}.{jname}.offset", i, unit, actuator=k in limb.actuated))
+    return params, np.eye(n_raw)
+
+
+def _dh_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
+    assert limb.dh is not None
+    nq = limb.nq
+    n_raw = 6 * (nq + 1) + nq
+    num = i + 1
+    params: list[ErrorParameter] = []
+    cols: list[np.ndarray] = []
+    for j, link in enumerate(dh_error_directions(limb.dh)):
+        for symbol, origin, c in link:
+            col = np.zeros(n_raw)
+            # the joint variable of joint j-1 enters θ_j (R) or d_j (P): that parameter is the
+            # joint's zero offset; for the actuated joint it is the paper's ξ_a.
+            joint = j - 1
+            is_offset = joint >= 0 and (
+                (symbol == "θ" and limb.dh.joint_types[joint] == "R")
+                or (symbol == "d" and limb.dh.joint_types[joint] == "P")
+            )
+            if is_offset and joint in limb.actuated:
+                col[6 * (nq + 1) + joint] = 1.0
+                name = f"ξ_{{a,{num}}}"
+                params.append(ErrorParameter(name, i, "rad" if symbol == "θ" else "m", actuator=True))
+            else:
+                col[6 * origin : 6 * origin + 6] = c
+                idx = "e" if symbol.endswith("_e") else str(j + 1)
+                sym = symbol.removesuffix("_e")
+                unit = "rad" if sym in ("θ", "φ") else "m"
+                params.append(ErrorParameter(f"δ{sym}_{{{idx},{num}}}", i, unit))
+            cols.append(col)
+    return params, np.column_stack(cols)
+
+
+def raw_columns_local(limb: Limb, model: pin.Model, data: pin.Data, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
+    """Raw error columns and joint twists of a limb at ``q``, in the platform frame.
+
+    Returns:
+        ``(raw, jac, oMp)``: ``raw`` (6, 6·(nq+1) + nq) maps raw errors to the platform pose error
+        ``δ`` (``oMp_actual = oMp · exp6(δ)``, local frame); ``jac`` (6, nq) the local frame
+        Jacobian; ``oMp`` the platform placement.
+    """
+    fid = limb.platform_frame
+    pin.computeJointJacobians(model, data, q)
+    oMp = pin.updateFramePlacement(model, data, fid).copy()
+    jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL)
+    reg = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
+    raw = np.hstack([reg, np.eye(6), jac])
+    return raw, jac, oMp
+
+
+def to_k_prime(rotation: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """Express local-frame twists (6, k) in K' (origin O', axes of K): ``diag(R, R) · local``."""
+    out = np.empty_like(local)
+    out[:3] = rotation @ local[:3]
+    out[3:] = rotation @ local[3:]
+    return out

@@ -1,0 +1,191 @@
+"""Actuation and constraint wrenches, and the compensatable/uncompensatable split (Eqs. 5–8, 25).
+
+At a pose, for each limb ``i`` with joint twists ``T_i`` (6, nq_i) in K':
+
+* constraint wrenches ``W_c,i``: an orthonormal basis of the wrenches reciprocal to every joint
+  of the limb (null space of ``T_iᵀ`` by SVD);
+* actuation wrench ``w_a,i`` (actuated limbs): reciprocal to every *passive* joint of the limb
+  and, among those, orthogonal (Euclidean, in K') to the limb's constraint wrenches — the choice
+  that matters only for limbs that are both actuated and constrained (docs/theory.md); scaled to
+  a unit screw (unit force, or unit couple if it has no force).
+
+Reciprocal product = ``wrench · twist`` (power; twist ``[v; ω]``, wrench ``[f; τ]``, both at O').
+Projecting the limb's twist equation ``$_t = T_i q̇ + E_i η_i`` on the wrenches removes the
+unknown passive motions: ``W_aᵀ $_t = Λ_a ξ_a + G_a η_a`` (7) and ``W_cᵀ $_t = G_c η_c`` (8). With
+``W = [W_a W_c]`` square and invertible, the pose error twist is
+``$_t = W⁻ᵀ [Λ_a ξ_a + G_a η_a; G_c η_c]``; the actuator correction of Eq. 25,
+``ξ_a ← ξ_a − Λ_a⁻¹ (Λ_a ξ_a + G_a η_a)``, leaves the uncompensatable twist ``W⁻ᵀ [0; G_c η_c]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.error_model import ParameterSet, raw_columns_local, to_k_prime
+from pkmtol.exceptions import PkmtolError, SingularPoseError
+from pkmtol.kinematics import ClosedChain, Pose
+from pkmtol.mechanism import Mechanism
+
+#: Relative singular-value threshold for null spaces (reciprocal screws).
+RANK_TOLERANCE = 1e-9
+#: Condition number of W above which the pose is called singular.
+W_SINGULAR_CONDITION = 1e8
+
+
+@dataclass(frozen=True, eq=False)
+class Separation:
+    """The error model of the whole mechanism at one pose (all arrays in K', SI units).
+
+    ``n`` is the number of parameters of the set, ``f`` of actuators, ``c`` of constraint wrenches.
+
+    Attributes:
+        pose: The closed-chain pose.
+        joint_twists: Per limb, shape (6, nq_i): unit joint twists.
+        error_columns: Shape (6, n): error twist of each parameter on its own limb (``T_c`` of Eq. 4).
+        W_a: Shape (6, f): actuation wrenches, limb order.
+        W_c: Shape (6, c): constraint wrenches, limb order.
+        constraint_limb: Shape (c,): limb index of each constraint wrench.
+        actuated_limb: Shape (f,): limb index of each actuation wrench.
+        Lambda_a: Shape (f,): ``w_a,k · t_a,k`` (the diagonal of Λ_a).
+        Y_a: Shape (f, n): actuation rows ``[Λ_a | G_a]`` per parameter (actuator offsets give Λ).
+        Y_c: Shape (c, n): constraint rows ``G_c`` per parameter.
+        W_condition: Condition number of W.
+        twist_map: Shape (6, n): ``$_t = twist_map · η`` (no compensation).
+        correction: Shape (f, n): Eq. 25, actuator command change ``Δu = correction · η`` [m, rad].
+        uncompensated_map: Shape (6, n): ``W⁻ᵀ [0; Y_c]``, the pose error left after Eq. 25.
+        lever_m: Shape (3,): ``l``, vector O' → P in K [m].
+        J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23).
+        J_total: Shape (3, n): position error of P without compensation (traditional method).
+    """
+
+    pose: Pose
+    joint_twists: tuple[np.ndarray, ...]
+    error_columns: np.ndarray
+    W_a: np.ndarray
+    W_c: np.ndarray
+    constraint_limb: np.ndarray
+    actuated_limb: np.ndarray
+    Lambda_a: np.ndarray
+    Y_a: np.ndarray
+    Y_c: np.ndarray
+    W_condition: float
+    twist_map: np.ndarray
+    correction: np.ndarray
+    uncompensated_map: np.ndarray
+    lever_m: np.ndarray
+    J: np.ndarray
+    J_total: np.ndarray
+
+
+class MobilityError(PkmtolError):
+    """The wrench system does not span 6 dimensions: the mechanism is not properly actuated."""
+
+
+def null_space(a: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of ``{x : a x = 0}`` (columns), by SVD with a relative tolerance."""
+    if a.shape[0] == 0:
+        return np.eye(a.shape[1])
+    _, s, vt = np.linalg.svd(a)
+    rank = int(np.sum(s > RANK_TOLERANCE * max(s[0], 1.0)))
+    return vt[rank:].T.copy()
+
+
+def unit_screw(w: np.ndarray) -> np.ndarray:
+    """Scale a wrench to a unit force (or to a unit couple if its force part vanishes)."""
+    f = np.linalg.norm(w[:3])
+    return w / (f if f > 1e-9 * np.linalg.norm(w) else np.linalg.norm(w[3:]))
+
+
+def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose: Pose) -> Separation:
+    """The error model and its separation at ``pose``.
+
+    Args:
+        mechanism: The mechanism.
+        pset: The error-parameter set.
+        chain: A solver workspace of the mechanism (its models and datas are reused).
+        pose: A closed-chain pose of the mechanism.
+
+    Raises:
+        SingularPoseError: W is singular (or nearly) at this pose.
+        MobilityError: the actuation and constraint wrenches do not make a basis of 6 wrenches.
+    """
+    n = len(pset)
+    twists, cols = [], np.zeros((6, n))
+    W_a, W_c, act_limb, con_limb, lam = [], [], [], [], []
+    Y_rows_a: list[np.ndarray] = []
+    Y_rows_c: list[np.ndarray] = []
+    rot = pose.oMp.rotation
+    for i, limb in enumerate(mechanism.limbs):
+        raw, jac, _ = raw_columns_local(limb, chain.models[i], chain.datas[i], pose.q[i])
+        t_i = to_k_prime(rot, jac)
+        e_i = to_k_prime(rot, raw @ pset.selections[i])
+        sl = pset.slices[i]
+        cols[:, sl] = e_i
+        twists.append(t_i)
+        wc = null_space(t_i.T)
+        for k in range(wc.shape[1]):
+            W_c.append(wc[:, k])
+            con_limb.append(i)
+            row = np.zeros(n)
+            row[sl] = wc[:, k] @ e_i
+            Y_rows_c.append(row)
+        for a in limb.actuated:
+            passive = [k for k in range(limb.nq) if k != a]
+            cand = null_space(t_i[:, passive].T)
+            if wc.shape[1]:
+                cand = cand - wc @ (wc.T @ cand)
+            u, s, _ = np.linalg.svd(cand, full_matrices=False)
+            w = unit_screw(u[:, 0])
+            lam_k = float(w @ t_i[:, a])
+            if lam_k < 0:
+                w, lam_k = -w, -lam_k
+            W_a.append(w)
+            act_limb.append(i)
+            lam.append(lam_k)
+            row = np.zeros(n)
+            row[sl] = w @ e_i
+            Y_rows_a.append(row)
+    wa = np.array(W_a).T.reshape(6, -1)
+    wcm = np.array(W_c).T.reshape(6, -1)
+    W = np.hstack([wa, wcm])
+    if W.shape[1] != 6:
+        raise MobilityError(
+            f"{wa.shape[1]} actuation + {wcm.shape[1]} constraint wrenches at P = "
+            f"{pose.p_m} m; pkmtol needs exactly 6 (f actuators + 6 − f constraints). "
+            "Check the actuated joints in mechanism.toml"
+        )
+    sv = np.linalg.svd(W, compute_uv=False)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+    if cond > W_SINGULAR_CONDITION:
+        raise SingularPoseError("the wrench matrix W", cond, pose.p_m)
+    Y_a = np.array(Y_rows_a).reshape(-1, n)
+    Y_c = np.array(Y_rows_c).reshape(-1, n)
+    W_inv_T = np.linalg.inv(W).T
+    f = wa.shape[1]
+    twist_map = W_inv_T @ np.vstack([Y_a, Y_c])
+    unc = W_inv_T[:, f:] @ Y_c
+    lever = rot @ mechanism.reference_point_m
+    to_p = np.hstack([np.eye(3), -pin.skew(lever)])
+    lam_arr = np.array(lam)
+    return Separation(
+        pose=pose,
+        joint_twists=tuple(twists),
+        error_columns=cols,
+        W_a=wa,
+        W_c=wcm,
+        constraint_limb=np.array(con_limb, dtype=int),
+        actuated_limb=np.array(act_limb, dtype=int),
+        Lambda_a=lam_arr,
+        Y_a=Y_a,
+        Y_c=Y_c,
+        W_condition=cond,
+        twist_map=twist_map,
+        correction=-(Y_a / lam_arr[:, None]) if f else np.zeros((0, n)),
+        uncompensated_map=unc,
+        lever_m=lever,
+        J=to_p @ unc,
+        J_total=to_p @ twist_map,
+    )
