@@ -33,6 +33,8 @@ from pkmtol.mechanism import Mechanism
 TOLERANCE = 1e-13
 #: Condition number of the closure Jacobian above which a pose is called singular.
 SINGULAR_CONDITION = 1e8
+#: Residual below which a non-converged solve ends *at* a singular pose (larger: no solution) [m, rad].
+SINGULAR_RESIDUAL = 1e-6
 MAX_ITERATIONS = 40
 
 
@@ -241,7 +243,7 @@ class ClosedChain:
             prev_norm = res_norm
         s = np.linalg.svd(self._evaluate(q, target)[1][:, free], compute_uv=False)
         cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
-        if cond > SINGULAR_CONDITION:
+        if cond > SINGULAR_CONDITION and res_norm < SINGULAR_RESIDUAL:
             raise SingularPoseError(f"the {what} Jacobian", cond)
         raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
 
@@ -284,8 +286,11 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
     """
     out = []
     for limb, e in zip(mechanism.limbs, eps, strict=True):
-        m = limb.model.copy()
         e = np.asarray(e, dtype=float)
+        if not e.any():
+            out.append(limb.model)  # unperturbed limbs are shared, never modified
+            continue
+        m = limb.model.copy()
         for j in range(1, m.njoints):
             m.jointPlacements[j] = limb.model.jointPlacements[j] * pin.exp6(e[j - 1])
         delta = pin.exp6(e[-1])

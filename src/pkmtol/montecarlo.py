@@ -1,0 +1,236 @@
+"""Monte Carlo: the most error-sensitive pose (paper §4.3) and verification of a design (§4.4).
+
+Verification samples errors from three distributions, all reported:
+
+* ``uniform_sigma``: uniform on ``±σ_i`` — the paper's choice (variance ``σ_i²/3``: a third of the
+  design's, so it passes almost regardless);
+* ``uniform_sqrt3_sigma``: uniform on ``±√3 σ_i`` (variance-matched);
+* ``gaussian``: ``N(0, σ_i²)`` (variance-matched, the FOSM model's own assumption).
+
+Each sample takes a random point of the task space (inverse kinematics there) and random errors;
+``Δλ`` comes from the linear model for every sample and, on a subsample, from exact kinematics of
+the perturbed mechanism with the Eq. 25 actuator correction applied (the truth).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy import stats
+from tqdm import tqdm
+
+from pkmtol.error_model import ParameterSet
+from pkmtol.kinematics import ClosedChain, perturbed_limb_models
+from pkmtol.mechanism import Mechanism
+from pkmtol.reliability import covariance_eigenvalues, norm_moments
+from pkmtol.sweep import Sweep
+
+DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
+
+
+@dataclass(frozen=True)
+class PoseSearch:
+    """Result of the sensitive-pose search (η_c ~ N(0, 1) per parameter, SI units).
+
+    Attributes:
+        sigma_sampled_m: Shape (m,): sample standard deviation of Δλ at each grid point [m].
+        sigma_analytic_m: Shape (m,): exact standard deviation of Δλ from the linear map [m].
+        mean_analytic_m: Shape (m,): exact mean of Δλ [m].
+        worst_index: Grid index of the largest sampled σ (the paper's Step 5).
+        worst_index_analytic: Grid index of the largest analytic σ.
+        samples: Number of samples.
+    """
+
+    sigma_sampled_m: np.ndarray
+    sigma_analytic_m: np.ndarray
+    mean_analytic_m: np.ndarray
+    worst_index: int
+    worst_index_analytic: int
+    samples: int
+
+
+def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
+    """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
+    m, _, n = J.shape
+    eta = rng.standard_normal((samples, n))
+    sampled = np.empty(m)
+    for j in range(m):
+        sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
+    moments = np.array([norm_moments(covariance_eigenvalues(J[j])) for j in range(m)])
+    return PoseSearch(
+        sigma_sampled_m=sampled,
+        sigma_analytic_m=moments[:, 1],
+        mean_analytic_m=moments[:, 0],
+        worst_index=int(np.argmax(sampled)),
+        worst_index_analytic=int(np.argmax(moments[:, 1])),
+        samples=samples,
+    )
+
+
+def sample_errors(
+    distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator
+) -> np.ndarray:
+    """Error samples of shape (count, n) for per-parameter tolerances ``sigma`` (n,)."""
+    sigma = np.asarray(sigma, dtype=float)
+    if distribution == "uniform_sigma":
+        return rng.uniform(-1.0, 1.0, (count, sigma.size)) * sigma
+    if distribution == "uniform_sqrt3_sigma":
+        return rng.uniform(-1.0, 1.0, (count, sigma.size)) * (math.sqrt(3.0) * sigma)
+    if distribution == "gaussian":
+        return rng.standard_normal((count, sigma.size)) * sigma
+    raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
+
+
+@dataclass(frozen=True)
+class FailureStats:
+    """Statistics of Δλ over samples.
+
+    Attributes:
+        mean_m: Mean Δλ [m].
+        std_m: Standard deviation of Δλ [m].
+        failure_fraction: Fraction of samples with Δλ > Δλ*.
+        failure_ci95: Wilson 95 % interval of the failure probability.
+        reliability: ``1 − failure_fraction``.
+        samples: Number of samples.
+    """
+
+    mean_m: float
+    std_m: float
+    failure_fraction: float
+    failure_ci95: tuple[float, float]
+    reliability: float
+    samples: int
+
+
+def failure_stats(dlam: np.ndarray, target_m: float) -> FailureStats:
+    """Summarise Δλ samples against Δλ*."""
+    n = int(dlam.size)
+    k = int(np.sum(dlam > target_m))
+    p = k / n
+    z = float(stats.norm.ppf(0.975))
+    den = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return FailureStats(
+        mean_m=float(dlam.mean()),
+        std_m=float(dlam.std(ddof=1)) if n > 1 else 0.0,
+        failure_fraction=p,
+        failure_ci95=(max(0.0, centre - half), min(1.0, centre + half)),
+        reliability=1.0 - p,
+        samples=n,
+    )
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Verification of one design under one error distribution.
+
+    Attributes:
+        distribution: One of :data:`DISTRIBUTIONS`.
+        linear: Statistics of the linear model over all samples.
+        exact: Statistics of exact kinematics over the subsample (None if not run).
+        linear_subsample: Statistics of the linear model over the same subsample.
+        max_relative_difference: Largest ``|Δλ_exact − Δλ_linear| / Δλ*`` over the subsample.
+        dlam_linear_m: Linear Δλ of every sample [m] (for figures).
+        points_m: Shape (samples, 3): the sample points [m].
+    """
+
+    distribution: str
+    linear: FailureStats
+    exact: FailureStats | None
+    linear_subsample: FailureStats | None
+    max_relative_difference: float
+    dlam_linear_m: np.ndarray
+    points_m: np.ndarray
+
+
+def verify(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    sweep_random: Sweep,
+    columns: np.ndarray,
+    sigma: np.ndarray,
+    target_m: float,
+    distribution: str,
+    samples: int,
+    exact_samples: int,
+    rng: np.random.Generator,
+    progress: bool = False,
+) -> Verification:
+    """Verify tolerances ``sigma`` (one per parameter in ``columns``) by Monte Carlo.
+
+    Args:
+        mechanism: The mechanism.
+        pset: Its parameter set.
+        sweep_random: Separations at random task-space points; sample ``s`` uses point
+            ``s mod m``.
+        columns: Indices (into ``pset``) of the toleranced parameters; the others are zero.
+        sigma: Tolerances of those parameters (SI).
+        target_m: Δλ* [m].
+        distribution: One of :data:`DISTRIBUTIONS`.
+        samples: Number of linear-model samples.
+        exact_samples: Size of the exact-kinematics subsample (the first samples).
+        rng: Random generator.
+        progress: Show a progress bar for the exact subsample.
+    """
+    m = len(sweep_random.poses)
+    point_of = np.arange(samples) % m
+    eta = sample_errors(distribution, sigma, samples, rng)
+    Jc = sweep_random.J[:, :, columns]  # (m, 3, k)
+    dlam = np.linalg.norm(np.einsum("sij,sj->si", Jc[point_of], eta), axis=1)
+    exact = lin_sub = None
+    max_diff = float("nan")
+    if exact_samples > 0:
+        k = min(exact_samples, samples)
+        dl_exact = np.empty(k)
+        chain = ClosedChain(mechanism)
+        full = np.zeros(len(pset))
+        for s in tqdm(range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False):
+            full[:] = 0.0
+            full[columns] = eta[s]
+            dl_exact[s] = exact_position_error(mechanism, pset, chain, sweep_random, point_of[s], full)
+        exact = failure_stats(dl_exact, target_m)
+        lin_sub = failure_stats(dlam[:k], target_m)
+        max_diff = float(np.max(np.abs(dl_exact - dlam[:k])) / target_m)
+    return Verification(
+        distribution=distribution,
+        linear=failure_stats(dlam, target_m),
+        exact=exact,
+        linear_subsample=lin_sub,
+        max_relative_difference=max_diff,
+        dlam_linear_m=dlam,
+        points_m=sweep_random.points_m[point_of],
+    )
+
+
+def exact_position_error(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    chain: ClosedChain,
+    sweep_: Sweep,
+    index: int,
+    eta: np.ndarray,
+) -> float:
+    """``‖P_actual − P_nominal‖`` [m] of the perturbed mechanism with the Eq. 25 correction.
+
+    The actuators are commanded to their nominal values plus ``correction · η`` (the calibrated
+    compensation); the perturbed closed chain is solved exactly.
+    """
+    pose = sweep_.poses[index]
+    sep = sweep_.separations[index]
+    eps, offsets = pset.perturbation(eta, mechanism)
+    models = perturbed_limb_models(mechanism, eps)
+    pchain = ClosedChain(mechanism, models=models, check_limits=False)
+    u = pose.q_all[chain.actuated_idx] + sep.correction @ eta
+    actual = pchain.forward(u, pose.q_all, offsets)
+    return float(np.linalg.norm(actual.p_m - pose.p_m))
+
+
+def pose_error_twist(nominal: pin.SE3, actual: pin.SE3) -> np.ndarray:
+    """Pose error ``$_t = diag(R, R) log6(X_nom⁻¹ X_act)`` in K' (6,) [m, rad]."""
+    d = pin.log6(nominal.actInv(actual)).vector
+    r = nominal.rotation
+    return np.concatenate([r @ d[:3], r @ d[3:]])

@@ -1,0 +1,267 @@
+"""Tables of a design: terminal text, CSV, JSON and Markdown; files written whole or not at all.
+
+Human-facing tables state their units (lengths in mm or µm, angles in mrad); JSON is SI with the
+unit named in each field (``_m``, ``unit``). Tolerances that are free (+∞: the parameter has no
+effect at the design point) are ``null`` in JSON and ``+inf`` in tables.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pkmtol.design import DesignResult
+from pkmtol.exceptions import OutputError
+from pkmtol.units import display, display_unit
+
+
+def _num(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(x)
+
+
+def _fmt_tol(x: float, unit: str) -> str:
+    return "+inf" if not math.isfinite(x) else f"±{display(x, unit):.4f}"
+
+
+def _sens_unit(unit: str) -> str:
+    return "µm/µm" if unit == "m" else "µm/µrad"
+
+
+def _ratio(new: float, old: float) -> float:
+    if not math.isfinite(old) and not math.isfinite(new):
+        return float("nan")
+    if not math.isfinite(new):
+        return float("inf")
+    return new / old
+
+
+def to_json_dict(r: DesignResult) -> dict[str, Any]:
+    """The design as a JSON-ready dict (SI units, unit named per field)."""
+    col = r.design_column
+    trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
+    params = []
+    for i, p in enumerate(r.pset.parameters):
+        tol = r.tolerances[i]
+        params.append(
+            {
+                "name": p.name,
+                "unit": p.unit,
+                "class": r.classes[i],
+                "sensitivity": float(r.sensitivity[i]),
+                "sensitivity_unit": f"m/{p.unit}",
+                "sensitivity_uncompensated": float(r.sensitivity_uncompensated[i]),
+                "tolerance": None if np.isnan(tol[0]) else [_num(t) for t in tol],
+                "traditional_tolerance": _num(trad[i]) if i in trad else None,
+            }
+        )
+    ver = {}
+    for name, v in r.verification.items():
+        d = _stats(v.linear)
+        d["exact"] = None if v.exact is None else _stats(v.exact)
+        d["linear_on_exact_subsample"] = None if v.linear_subsample is None else _stats(v.linear_subsample)
+        d["max_exact_linear_difference_over_target"] = _num(v.max_relative_difference)
+        ver[name] = d
+    return {
+        "mechanism": r.mechanism.name,
+        "parameter_set": r.pset.kind,
+        "target_m": r.target_m,
+        "beta": list(r.betas),
+        "reliability": [float(x) for x in r.reliability_fosm],
+        "design_beta": r.design_beta,
+        "worst_point_m": r.worst_point_m.tolist(),
+        "n_allocated": int(np.sum(np.isfinite(r.tolerances[r.uncompensatable, col]))),
+        "parameters": params,
+        "sensitive_pose_search": {
+            "samples": r.search.samples,
+            "points_m": r.grid.points_m.tolist(),
+            "sigma_sampled_m": r.search.sigma_sampled_m.tolist(),
+            "sigma_analytic_m": r.search.sigma_analytic_m.tolist(),
+            "worst_index": r.worst_index,
+        },
+        "verification": ver,
+        "traditional": {
+            "design_point_m": r.worst_point_m.tolist(),
+            "own_worst_point_m": r.grid.points_m[r.traditional.worst_index].tolist(),
+            "n_allocated": int(np.sum(np.isfinite(r.traditional.tolerance))),
+        },
+    }
+
+
+def _stats(s: Any) -> dict[str, Any]:
+    return {
+        "mean_m": s.mean_m,
+        "std_m": s.std_m,
+        "failure_fraction": s.failure_fraction,
+        "failure_ci95": list(s.failure_ci95),
+        "reliability": s.reliability,
+        "samples": s.samples,
+    }
+
+
+def to_json(r: DesignResult) -> str:
+    """JSON text (deterministic for a given seed)."""
+    return json.dumps(to_json_dict(r), indent=2, ensure_ascii=False) + "\n"
+
+
+def table_rows(r: DesignResult) -> list[list[str]]:
+    """Rows of the tolerance table (the paper's Table III) with a header row."""
+    header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas]
+    rows = [header]
+    for k, i in enumerate(r.uncompensatable, start=1):
+        p = r.pset.parameters[i]
+        rows.append(
+            [str(k), p.name, display_unit(p.unit), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
+            + [_fmt_tol(t, p.unit) for t in r.tolerances[i]]
+        )
+    return rows
+
+
+def comparison_rows(r: DesignResult) -> list[list[str]]:
+    """Traditional vs new tolerance at the design β, per non-absorbed parameter."""
+    col = r.design_column
+    rows = [["parameter", "class", "unit", "new", "traditional", "traditional/new"]]
+    for i, t in zip(r.traditional.columns, r.traditional.tolerance, strict=True):
+        p = r.pset.parameters[i]
+        new = r.tolerances[i, col] if r.classes[i] == "uncompensatable" else float("inf")
+        ratio = _ratio(t, new) if math.isfinite(new) else float("nan")
+        rows.append(
+            [p.name, r.classes[i], display_unit(p.unit), _fmt_tol(new, p.unit) if r.classes[i] == "uncompensatable" else "compensated",
+             _fmt_tol(t, p.unit), "-" if math.isnan(ratio) else f"{ratio:.3f}"]
+        )
+    return rows
+
+
+def _text_table(rows: list[list[str]]) -> str:
+    widths = [max(len(row[c]) for row in rows) for c in range(len(rows[0]))]
+    lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w) for c, (cell, w) in enumerate(zip(row, widths, strict=True))) for row in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _md_table(rows: list[list[str]]) -> str:
+    out = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
+    out += ["| " + " | ".join(row) + " |" for row in rows[1:]]
+    return "\n".join(out)
+
+
+def summary_text(r: DesignResult, markdown: bool = False) -> str:
+    """The whole report as terminal text or Markdown."""
+    table = _md_table if markdown else _text_table
+    h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
+    col = r.design_column
+    counts = {c: r.classes.count(c) for c in ("absorbed", "compensatable", "uncompensatable")}
+    wp = r.worst_point_m * 1e3
+    out = [
+        ("# " if markdown else "") + f"pkmtol allocation — {r.mechanism.name}",
+        "",
+        f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at P; parameter set '{r.pset.kind}' "
+        f"({len(r.pset)} parameters: {counts['uncompensatable']} uncompensatable, "
+        f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
+        f"most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm, "
+        f"σ = {r.search.sigma_analytic_m[r.worst_index]:.5g} m analytic, "
+        f"{r.search.sigma_sampled_m[r.worst_index]:.5g} m from {r.search.samples} samples "
+        f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
+        h("Tolerances of the uncompensatable errors (FOSM, paper Table III)"),
+        "R = Φ(β): " + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
+        "",
+        table(table_rows(r)),
+        h(f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"),
+    ]
+    vrows = [["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]]
+    for name, v in r.verification.items():
+        for label, s in (("linear", v.linear), ("exact", v.exact), ("linear (same subsample)", v.linear_subsample)):
+            if s is None:
+                continue
+            vrows.append([name, label, str(s.samples), f"{s.mean_m * 1e6:.3f}", f"{s.std_m * 1e6:.3f}",
+                          f"{100 * s.failure_fraction:.2f}", f"{100 * s.failure_ci95[0]:.2f}–{100 * s.failure_ci95[1]:.2f}",
+                          f"{100 * s.reliability:.2f}"])
+    out += [table(vrows), "", f"claimed by FOSM: R = {100 * r.reliability_fosm[col]:.2f} %"]
+    t = r.traditional
+    fin = np.isfinite(t.tolerance)
+    shared = [
+        (t.tolerance[k], r.tolerances[i, col])
+        for k, i in enumerate(t.columns)
+        if r.classes[i] == "uncompensatable" and math.isfinite(r.tolerances[i, col])
+    ]
+    tighter = sum(1 for a, b in shared if a < b)
+    factor = np.median([b / a for a, b in shared]) if shared else float("nan")
+    out += [
+        h("Traditional method (all errors, no compensation), same Δλ*, β and design point"),
+        f"{len(t.columns)} parameters allocated ({int(fin.sum())} finite, {int((~fin).sum())} free '+inf') vs "
+        f"{len(r.uncompensatable)} by the new method; {tighter} of {len(shared)} shared tolerances are tighter "
+        f"(median factor {factor:.3f}); traditional's own most sensitive point: "
+        "(" + ", ".join(f"{x * 1e3:.1f}" for x in r.grid.points_m[t.worst_index]) + ") mm",
+        "",
+        table(comparison_rows(r)),
+    ]
+    return "\n".join(out) + "\n"
+
+
+def to_csv(r: DesignResult) -> str:
+    """CSV of every parameter: class, sensitivity, tolerances per β (display units)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    col = r.design_column
+    trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
+    w.writerow(["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
+               + [f"tolerance_beta_{b:g}" for b in r.betas] + [f"traditional_tolerance_beta_{r.design_beta:g}"])
+    for i, p in enumerate(r.pset.parameters):
+        u = p.unit
+        tols = ["" if np.isnan(t) else ("inf" if not math.isfinite(t) else f"{display(t, u):.6g}") for t in r.tolerances[i]]
+        tr = trad.get(i)
+        w.writerow([p.name, display_unit(u), r.classes[i], f"{r.sensitivity[i]:.6g}"] + tols
+                   + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u):.6g}")])
+    del col
+    return buf.getvalue()
+
+
+def write_outputs(r: DesignResult, out_dir: Path | str, extra: dict[str, bytes] | None = None) -> list[Path]:
+    """Write allocation.json/.csv/.md (and ``extra`` files) into ``out_dir``, each atomically.
+
+    Every text is rendered before anything is written; each file goes to a temporary file in the
+    same folder and is renamed into place, so a file is either whole or absent.
+
+    Raises:
+        OutputError: the folder cannot be created or written.
+    """
+    out = Path(out_dir)
+    contents: dict[str, bytes] = {
+        "allocation.json": to_json(r).encode(),
+        "allocation.csv": to_csv(r).encode(),
+        "allocation.md": summary_text(r, markdown=True).encode(),
+    }
+    contents.update(extra or {})
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(out, f"{err.strerror}; choose another --out folder") from err
+    if not os.access(out, os.W_OK):
+        raise OutputError(out, "folder is not writable; choose another --out folder")
+    written = []
+    for name, data in contents.items():
+        write_atomic(out / name, data)
+        written.append(out / name)
+    return written
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file and rename (whole file or nothing)."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as err:
+        raise OutputError(path, f"{err.strerror}; choose another --out folder") from err
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,96 @@
+"""The error model over many poses: inverse kinematics along a point list, separation at each."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from pkmtol.error_model import ParameterSet
+from pkmtol.kinematics import ClosedChain, Pose
+from pkmtol.mechanism import Mechanism
+from pkmtol.separation import Separation, separate
+
+#: Relative size of a projection below which it counts as zero (classification).
+ZERO_TOLERANCE = 1e-9
+
+CLASSES = ("absorbed", "compensatable", "uncompensatable")
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """Separations at a list of points of P.
+
+    Attributes:
+        points_m: Shape (m, 3): positions of P in K [m].
+        poses: The closed-chain poses.
+        separations: The separation at each pose.
+        J: Shape (m, 3, n): compensated map to P's position error at each point.
+        J_total: Shape (m, 3, n): uncompensated map to P's position error at each point.
+        W_condition: Shape (m,): condition number of W at each point.
+    """
+
+    points_m: np.ndarray
+    poses: tuple[Pose, ...]
+    separations: tuple[Separation, ...]
+    J: np.ndarray
+    J_total: np.ndarray
+    W_condition: np.ndarray
+
+    def classify(self) -> list[str]:
+        """Class of each parameter: ``absorbed``, ``compensatable`` or ``uncompensatable``.
+
+        Uncompensatable: a constraint wrench of its limb sees it (``G_c`` column ≠ 0) at some
+        point. Compensatable: otherwise, an actuation wrench sees it (``G_a`` or ``Λ_a``).
+        Absorbed: neither, at every point — its error twist lies in its limb's passive-joint span.
+        """
+        ya = np.zeros(self.J.shape[2])
+        yc = np.zeros_like(ya)
+        for s in self.separations:
+            scale = np.maximum(1.0, np.linalg.norm(s.error_columns, axis=0))
+            if s.Y_a.size:
+                ya = np.maximum(ya, np.abs(s.Y_a).max(axis=0) / scale)
+            if s.Y_c.size:
+                yc = np.maximum(yc, np.abs(s.Y_c).max(axis=0) / scale)
+        return [
+            "uncompensatable" if c > ZERO_TOLERANCE else "compensatable" if a > ZERO_TOLERANCE else "absorbed"
+            for a, c in zip(ya, yc, strict=True)
+        ]
+
+
+def sweep(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    points_m: np.ndarray,
+    chain: ClosedChain | None = None,
+    guesses: np.ndarray | None = None,
+    progress: bool = False,
+) -> Sweep:
+    """Solve the inverse kinematics at every point and separate the errors there.
+
+    Args:
+        mechanism: The mechanism.
+        pset: The error-parameter set.
+        points_m: Shape (m, 3): positions of P in K [m].
+        chain: Solver workspace (created if None).
+        guesses: Shape (m, Σ nq): initial guesses; default warm-starts from the previous point.
+        progress: Show a progress bar.
+    """
+    chain = chain or ClosedChain(mechanism)
+    q = chain.home()
+    poses, seps = [], []
+    it = tqdm(points_m, desc="poses", unit="pose", disable=not progress, leave=False)
+    for k, p in enumerate(it):
+        pose = chain.inverse(p, q if guesses is None else guesses[k])
+        q = pose.q_all
+        poses.append(pose)
+        seps.append(separate(mechanism, pset, chain, pose))
+    return Sweep(
+        points_m=np.asarray(points_m, dtype=float),
+        poses=tuple(poses),
+        separations=tuple(seps),
+        J=np.array([s.J for s in seps]),
+        J_total=np.array([s.J_total for s in seps]),
+        W_condition=np.array([s.W_condition for s in seps]),
+    )
