@@ -118,7 +118,7 @@ def failure_stats(dlam: np.ndarray, target_m: float) -> FailureStats:
         mean_m=float(dlam.mean()),
         std_m=float(dlam.std(ddof=1)) if n > 1 else 0.0,
         failure_fraction=p,
-        failure_ci95=(max(0.0, centre - half), min(1.0, centre + half)),
+        failure_ci95=(0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half)),
         reliability=1.0 - p,
         samples=n,
     )
