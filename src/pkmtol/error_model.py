@@ -29,6 +29,7 @@ from pkmtol.exceptions import InvalidRequestError
 from pkmtol.mechanism import Limb, Mechanism
 
 COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
+_EYE6 = np.eye(6)
 PARAMETER_SETS = ("urdf", "dh")
 
 
@@ -188,8 +189,11 @@ def raw_columns_local(limb: Limb, model: pin.Model, data: pin.Data, q: np.ndarra
     pin.computeJointJacobians(model, data, q)
     oMp = pin.updateFramePlacement(model, data, fid).copy()
     jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-    reg = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
-    raw = np.hstack([reg, np.eye(6), jac])
+    n_reg = 6 * limb.nq
+    raw = np.empty((6, n_reg + 6 + limb.nq))
+    raw[:, :n_reg] = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
+    raw[:, n_reg : n_reg + 6] = _EYE6
+    raw[:, n_reg + 6 :] = jac
     return raw, jac, oMp
 
 

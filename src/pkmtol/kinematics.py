@@ -46,7 +46,7 @@ class Pose:
         q: Joint values of each limb, shape (nq_i,) each [rad or m].
         oMp: Platform placement in K (limb 0's platform frame), ``pin.SE3``.
         p_m: Position of the reference point P in K, shape (3,) [m].
-        residual: Norm of the closure residual at the solution [m, rad].
+        residual: Norm of the closure (and task) residual at the solution [m, rad].
         condition: Condition number of the closure(+task) Jacobian at the solution.
     """
 
@@ -93,6 +93,7 @@ class ClosedChain:
         n_rows = 6 * (len(self.models) - 1)
         self._jac = np.zeros((n_rows + 3, int(self.offsets[-1])))
         self._res = np.zeros(n_rows + 3)
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (q, Jacobian) of last inverse
 
     # --- public ---------------------------------------------------------------------------
 
@@ -108,7 +109,7 @@ class ClosedChain:
         free = np.ones(q0.size, dtype=bool)
         free[self.actuated_idx] = False
         try:
-            q, _ = self._newton(q0, free, None, "home closure")
+            q, _, _ = self._newton(q0, free, None, "home closure")
         except (ConvergenceError, SingularPoseError) as err:
             raise PlatformMismatchError(*self._worst_limb(q0)) from err
         return q
@@ -130,7 +131,7 @@ class ClosedChain:
             q0 = self.home()
         free = np.ones(q0.size, dtype=bool)
         try:
-            q, cond = self._newton(q0, free, target, "inverse kinematics")
+            q, cond, res = self._newton(q0, free, target, "inverse kinematics")
         except ConvergenceError as err:
             raise UnreachableTargetError(
                 target, f"the closure equations have no solution near the initial guess ({err.residual:.2g} left)"
@@ -138,7 +139,7 @@ class ClosedChain:
         except SingularPoseError as err:
             raise SingularPoseError(err.what, err.condition, target) from err
         self._check_limits(q, target)
-        return self._pose(q, cond)
+        return self._pose(q, cond, res)
 
     def forward(
         self,
@@ -163,8 +164,8 @@ class ClosedChain:
             q[self.actuated_idx] += offsets[self.actuated_idx]
         free = np.ones(q.size, dtype=bool)
         free[self.actuated_idx] = False
-        q, cond = self._newton(q, free, None, "forward kinematics")
-        return self._pose(q, cond)
+        q, cond, res = self._newton(q, free, None, "forward kinematics")
+        return self._pose(q, cond, res)
 
     def platform_placements(self, q: np.ndarray) -> list[pin.SE3]:
         """Each limb's platform placement in K at joint values ``q`` (Σ nq,)."""
@@ -176,13 +177,29 @@ class ClosedChain:
 
     # --- internals ------------------------------------------------------------------------
 
-    def _pose(self, q: np.ndarray, cond: float) -> Pose:
-        oMp = self.platform_placements(q)
-        res = max(
-            float(np.linalg.norm(pin.log6(oMp[0].inverse() * m).vector)) for m in oMp[1:]
-        ) if len(oMp) > 1 else 0.0
+    def _pose(self, q: np.ndarray, cond: float, residual: float) -> Pose:
+        """Pose from the kinematics left in ``self.datas`` by the last evaluation at ``q``."""
+        oMp = self.datas[0].oMf[self.fids[0]].copy()
         qs = tuple(q[self.offsets[i] : self.offsets[i + 1]].copy() for i in range(len(self.models)))
-        return Pose(q=qs, oMp=oMp[0], p_m=oMp[0].act(self.p_ref), residual=res, condition=cond)
+        return Pose(q=qs, oMp=oMp, p_m=oMp.act(self.p_ref), residual=residual, condition=cond)
+
+    def predict(self, pose: Pose, target_m: np.ndarray) -> np.ndarray:
+        """First-order guess of the joints that put P at ``target_m``, from a solved ``pose``.
+
+        Uses the closure+task Jacobian of the last inverse solve when ``pose`` is that solution
+        (free), otherwise evaluates it: ``A Δq = [0; Δp]``.
+        """
+        q = pose.q_all
+        if self._last is not None and np.array_equal(self._last[0], q):
+            a = self._last[1]
+        else:
+            a = self._evaluate(q, pose.p_m)[1].copy()
+        rhs = np.zeros(a.shape[0])
+        rhs[-3:] = np.asarray(target_m, dtype=float) - pose.p_m
+        try:
+            return q + np.linalg.solve(a, rhs)
+        except np.linalg.LinAlgError:
+            return q
 
     def _evaluate(self, q: np.ndarray, target: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Residual and Jacobian (all columns) of closure (+ task) at ``q``."""
@@ -215,19 +232,23 @@ class ClosedChain:
 
     def _newton(
         self, q0: np.ndarray, free: np.ndarray, target: np.ndarray | None, what: str
-    ) -> tuple[np.ndarray, float]:
+    ) -> tuple[np.ndarray, float, float]:
+        """Newton's method on the free joints; returns (q, condition number, residual norm)."""
         q = np.array(q0, dtype=float)
-        res_norm = np.inf
-        for it in range(MAX_ITERATIONS):
+        res_norm = prev_norm = np.inf
+        for _ in range(MAX_ITERATIONS):
             res, jac = self._evaluate(q, target)
             a = jac[:, free]
             res_norm = float(np.max(np.abs(res)))
-            if res_norm < TOLERANCE or (it > 0 and res_norm < 1e-11 and res_norm >= prev_norm):
+            # converged, or stalled at round-off level
+            if res_norm < TOLERANCE or (res_norm < 1e-11 and res_norm >= prev_norm):
                 s = np.linalg.svd(a, compute_uv=False)
                 cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
                 if a.shape[0] < a.shape[1] or cond > SINGULAR_CONDITION:
                     raise SingularPoseError(f"the {what} Jacobian", cond)
-                return q, cond
+                if target is not None:
+                    self._last = (q.copy(), a.copy())
+                return q, cond, float(np.linalg.norm(res))
             if a.shape[0] == a.shape[1]:
                 try:
                     step = np.linalg.solve(a, res)
@@ -243,7 +264,7 @@ class ClosedChain:
             prev_norm = res_norm
         s = np.linalg.svd(self._evaluate(q, target)[1][:, free], compute_uv=False)
         cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
-        if cond > SINGULAR_CONDITION and res_norm < SINGULAR_RESIDUAL:
+        if cond > SINGULAR_CONDITION:
             raise SingularPoseError(f"the {what} Jacobian", cond)
         raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
 

@@ -6,8 +6,10 @@ At a pose, for each limb ``i`` with joint twists ``T_i`` (6, nq_i) in K':
   of the limb (null space of ``T_iᵀ`` by SVD);
 * actuation wrench ``w_a,i`` (actuated limbs): reciprocal to every *passive* joint of the limb
   and, among those, orthogonal (Euclidean, in K') to the limb's constraint wrenches — the choice
-  that matters only for limbs that are both actuated and constrained (docs/theory.md); scaled to
-  a unit screw (unit force, or unit couple if it has no force).
+  that matters only for limbs that are both actuated and constrained (docs/theory.md). Since the
+  orthogonal complement of ``W_c,i`` is the span of ``T_i``, this ``w_a,i`` is the part of the
+  actuated joint's twist orthogonal to the passive twists (one QR); it is scaled to a unit screw
+  (unit force, or unit couple if it has no force), so ``Λ_a > 0``.
 
 Reciprocal product = ``wrench · twist`` (power; twist ``[v; ω]``, wrench ``[f; τ]``, both at O').
 Projecting the limb's twist equation ``$_t = T_i q̇ + E_i η_i`` on the wrenches removes the
@@ -133,18 +135,20 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
             row[sl] = wc[:, k] @ e_i
             Y_rows_c.append(row)
         for a in limb.actuated:
+            # w ∈ range(T_i) (⟂ W_c) and reciprocal to the passive twists: the part of the
+            # actuated twist orthogonal to the passive twists' span
             passive = [k for k in range(limb.nq) if k != a]
-            cand = null_space(t_i[:, passive].T)
-            if wc.shape[1]:
-                cand = cand - wc @ (wc.T @ cand)
-            u, s, _ = np.linalg.svd(cand, full_matrices=False)
-            w = unit_screw(u[:, 0])
-            lam_k = float(w @ t_i[:, a])
-            if lam_k < 0:
-                w, lam_k = -w, -lam_k
+            qp, _ = np.linalg.qr(t_i[:, passive])
+            w = t_i[:, a] - qp @ (qp.T @ t_i[:, a])
+            if np.linalg.norm(w) < RANK_TOLERANCE:
+                raise MobilityError(
+                    f"limb '{limb.name}': the actuated joint moves the platform only within the "
+                    f"passive joints' span at P = {pose.p_m} m (actuation singularity)"
+                )
+            w = unit_screw(w)
             W_a.append(w)
             act_limb.append(i)
-            lam.append(lam_k)
+            lam.append(float(w @ t_i[:, a]))
             row = np.zeros(n)
             row[sl] = w @ e_i
             Y_rows_a.append(row)

@@ -74,16 +74,22 @@ def sweep(
         pset: The error-parameter set.
         points_m: Shape (m, 3): positions of P in K [m].
         chain: Solver workspace (created if None).
-        guesses: Shape (m, Σ nq): initial guesses; default warm-starts from the previous point.
+        guesses: Shape (m, Σ nq): initial guesses; default: a tangent step from the previous
+            point's solution (the first point starts from the refined home).
         progress: Show a progress bar.
     """
     chain = chain or ClosedChain(mechanism)
-    q = chain.home()
-    poses, seps = [], []
+    poses: list[Pose] = []
+    seps = []
     it = tqdm(points_m, desc="poses", unit="pose", disable=not progress, leave=False)
     for k, p in enumerate(it):
-        pose = chain.inverse(p, q if guesses is None else guesses[k])
-        q = pose.q_all
+        if guesses is not None:
+            q0 = guesses[k]
+        elif poses:
+            q0 = chain.predict(poses[-1], p)  # tangent step from the previous point
+        else:
+            q0 = chain.home()
+        pose = chain.inverse(p, q0)
         poses.append(pose)
         seps.append(separate(mechanism, pset, chain, pose))
     return Sweep(
