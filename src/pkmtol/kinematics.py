@@ -84,6 +84,7 @@ class ClosedChain:
         self.sizes = [lb.nq for lb in mechanism.limbs]
         self.offsets = np.cumsum([0] + self.sizes)
         self.p_ref = np.asarray(mechanism.reference_point_m, dtype=float)
+        self._skew_p = pin.skew(self.p_ref)
         self.check_limits = check_limits
         self.actuated_idx = np.array(
             [self.offsets[i] + a for i, lb in enumerate(mechanism.limbs) for a in lb.actuated], dtype=int
@@ -202,13 +203,15 @@ class ClosedChain:
             return q
 
     def _evaluate(self, q: np.ndarray, target: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """Residual and Jacobian (all columns) of closure (+ task) at ``q``."""
+        """Residual and Jacobian (all columns) of closure (+ task) at ``q``.
+
+        Only the blocks of limb ``i`` and limb 0 are ever written; the rest of the Jacobian
+        buffer stays zero from construction.
+        """
         jac, res = self._jac, self._res
-        jac[:] = 0.0
         placements, jacs = [], []
         for i, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
-            qi = q[self.offsets[i] : self.offsets[i + 1]]
-            pin.computeJointJacobians(m, d, qi)  # also the joint placements oMi
+            pin.computeJointJacobians(m, d, q[self.offsets[i] : self.offsets[i + 1]])  # and oMi
             placements.append(pin.updateFramePlacement(m, d, self.fids[i]))
             jacs.append(pin.getFrameJacobian(m, d, self.fids[i], pin.LOCAL))
         m0 = placements[0]
@@ -220,14 +223,14 @@ class ClosedChain:
             res[rows] = pin.log6(e).vector
             jl = pin.Jlog6(e)
             jac[rows, self.offsets[i] : self.offsets[i + 1]] = jl @ jacs[i]
-            jac[rows, c0] = -(jl @ e.inverse().toActionMatrix()) @ j0
+            jac[rows, c0] = -(jl @ e.toActionMatrixInverse()) @ j0
         n = 6 * (len(self.models) - 1)
         if target is None:
             return res[:n], jac[:n]
         p = m0.act(self.p_ref)
         res[n:] = p - target
         rot = m0.rotation
-        jac[n:, c0] = rot @ (j0[:3] - pin.skew(self.p_ref) @ j0[3:])
+        jac[n:, c0] = rot @ (j0[:3] - self._skew_p @ j0[3:])
         return res, jac
 
     def _newton(

@@ -1,0 +1,80 @@
+"""Benchmarks of pkmtol, printed as a table (never run as timed tests).
+
+Usage:
+    python scripts/benchmark.py [robots/r2rps_ups] [--repeat 3]
+
+Rows (targets from the issues, on one core of the 2-core CI machine):
+    * inverse kinematics over the task-space grid, warm-started          target ≥ 2,000 poses/s
+    * inverse kinematics + error model + separation + J over the grid     target ≥ 1,000 poses/s
+    * `pkmtol allocate` main job with defaults, per stage and in total    target ≤ 10 s
+The best of ``--repeat`` runs is reported (the machine is shared; the best is the least disturbed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+# one BLAS thread: the matrices are 6×6 to 21×21; threads only add synchronisation
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from pkmtol.design import DesignOptions, allocate  # noqa: E402
+from pkmtol.error_model import default_set, parameter_set  # noqa: E402
+from pkmtol.kinematics import ClosedChain  # noqa: E402
+from pkmtol.mechanism import load_mechanism  # noqa: E402
+from pkmtol.sweep import sweep  # noqa: E402
+
+
+def best_of(repeat: int, fn) -> float:  # type: ignore[no-untyped-def]
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("robot", nargs="?", default="robots/r2rps_ups", type=Path)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    mech = load_mechanism(args.robot)
+    grid = mech.task_space.grid()
+    chain = ClosedChain(mech)
+    pset = parameter_set(mech, default_set(mech))
+
+    def ik_grid() -> None:
+        pose = chain.inverse(grid[0], chain.home())
+        for p in grid[1:]:
+            pose = chain.inverse(p, chain.predict(pose, p))
+
+    rows = []
+    t = best_of(args.repeat, ik_grid)
+    rows.append(("inverse kinematics, grid", f"{len(grid)} poses", t, f"{len(grid) / t:,.0f} poses/s", "≥ 2,000 poses/s"))
+    t = best_of(args.repeat, lambda: sweep(mech, pset, grid, chain))
+    rows.append((f"IK + error model + separation + J ({pset.kind})", f"{len(grid)} poses", t,
+                 f"{len(grid) / t:,.0f} poses/s", "≥ 1,000 poses/s"))
+
+    results = []
+    t = best_of(args.repeat, lambda: results.append(allocate(mech, DesignOptions())))
+    stages = min(results, key=lambda r: sum(r.timings_s.values())).timings_s
+    for name, secs in stages.items():
+        rows.append((f"  allocate: {name}", "", secs, "", ""))
+    rows.append(("allocate (defaults), total", "", t, f"{t:.2f} s", "≤ 10 s"))
+
+    w = max(len(r[0]) for r in rows)
+    print(f"pkmtol benchmark — {mech.name}, best of {args.repeat}, numpy {np.__version__}")
+    print(f"{'stage'.ljust(w)}  {'size':>11}  {'time [s]':>9}  {'rate':>16}  target")
+    print("-" * (w + 60))
+    for name, size, secs, rate, target in rows:
+        print(f"{name.ljust(w)}  {size:>11}  {secs:9.3f}  {rate:>16}  {target}")
+
+
+if __name__ == "__main__":
+    main()
