@@ -302,7 +302,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         target_m = parse_length(target, "design.target")
     except Exception as err:
         r.fail("design.target", str(err))
-    betas = tuple(float(b) for b in r.get("design.beta", list, default=list(DEFAULT_BETAS)))
+    betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
     limbs_doc = r.get("limbs", list)
     if len(limbs_doc) < 2:
@@ -357,7 +357,10 @@ def _read_task_space(r: _Reader) -> TaskSpace:
     kind = r.get("task_space.kind", str)
     if kind == "cylinder":
         z = r.vector("task_space.z_m", 2)
-        rings = tuple(int(x) for x in r.get("task_space.rings", list))
+        rings_f = r.array("task_space.rings")
+        if rings_f.ndim != 1 or np.any(rings_f != np.round(rings_f)):
+            r.fail("task_space.rings", f"expected a list of integers, got {rings_f.tolist()!r}")
+        rings = tuple(int(x) for x in rings_f)
         radius = float(r.get("task_space.radius_m", (float, int)))
         layers = int(r.get("task_space.layers", int))
         if radius <= 0 or layers < 1 or not rings or min(rings) < 1 or z[1] < z[0]:
@@ -371,7 +374,7 @@ def _read_task_space(r: _Reader) -> TaskSpace:
             center_xy_m=tuple(r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])),  # type: ignore[arg-type]
         )
     if kind == "points":
-        pts = np.asarray(r.get("task_space.points_m", list), dtype=float)
+        pts = r.array("task_space.points_m")
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             r.fail("task_space.points_m", "need a list of [x, y, z] points in metres")
         return TaskSpace(kind="points", points_m=pts)
@@ -382,14 +385,14 @@ def _read_task_space(r: _Reader) -> TaskSpace:
 def _read_dh(r: _Reader) -> DHTable:
     types = tuple(r.get("dh.joint_types", list))
     n = len(types)
-    links = np.asarray(r.get("dh.links", list), dtype=float)
+    links = r.array("dh.links")
     if links.shape != (n + 1, 4):
         r.fail("dh.links", f"need {n + 1} rows [theta_deg, d_m, a_m, phi_deg] for {n} joints")
     links = links.copy()
     links[:, 0] = np.radians(links[:, 0])
     links[:, 3] = np.radians(links[:, 3])
     end = r.vector("dh.end", 2)
-    limits = np.asarray(r.get("dh.limits", list), dtype=float)
+    limits = r.array("dh.limits")
     if limits.shape != (n, 2):
         r.fail("dh.limits", f"need {n} rows [lower, upper] (deg for R, m for P)")
     limits = limits.copy()
@@ -428,6 +431,15 @@ class _Reader:
             names = " or ".join(t.__name__ for t in tt)
             self.fail(key, f"expected {names}, got {type(node).__name__} {node!r}")
         return node
+
+    def array(self, key: str, default: Any = _MISSING) -> np.ndarray:
+        """Read a (nested) list of numbers as a float array; fail naming ``key`` if it is not."""
+        v = self.get(key, list, default)
+        try:
+            return np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            self.fail(key, f"expected a list of numbers (rows of equal length), got {v!r}")
+            raise
 
     def vector(self, key: str, n: int, default: Any = _MISSING) -> np.ndarray:
         v = self.get(key, list, default)
