@@ -267,7 +267,7 @@ class ClosedChain:
             prev_norm = res_norm
         s = np.linalg.svd(self._evaluate(q, target)[1][:, free], compute_uv=False)
         cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
-        if cond > SINGULAR_CONDITION:
+        if cond > SINGULAR_CONDITION and res_norm < SINGULAR_RESIDUAL:
             raise SingularPoseError(f"the {what} Jacobian", cond)
         raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
 
