@@ -202,66 +202,63 @@ def test_platform_frames_do_not_coincide_at_home(tmp_path):
     )
 
 
-@pytest.mark.parametrize(
-    ("old", "new", "key", "problem"),
-    [
-        ('name = "r2rps_ups"\n', "", "name", "missing"),
-        ("radius_m = 0.6", "", "task_space.radius_m", "missing"),
-        ('urdf = "limb3.urdf"', "", "limbs[2].urdf", "missing"),
-        ("position_m = [0.0, 0.0, 0.3]", "", "reference_point.position_m", "missing"),
-    ],
-)
-def test_toml_with_a_missing_key(tmp_path, old, new, key, problem):
+MISSING_KEYS = [
+    ('name = "r2rps_ups"\n', "", "name", "missing"),
+    ("radius_m = 0.6", "", "task_space.radius_m", "missing"),
+    ('urdf = "limb3.urdf"', "", "limbs[2].urdf", "missing"),
+    ("position_m = [0.0, 0.0, 0.3]", "", "reference_point.position_m", "missing"),
+]
+MISTYPED_VALUES = [
+    (
+        "radius_m = 0.6",
+        'radius_m = "0.6"',
+        "task_space.radius_m",
+        "expected float or int, got str '0.6'",
+    ),
+    ("layers = 3", "layers = 3.0", "task_space.layers", "expected int, got float 3.0"),
+    (
+        'actuated = ["limb2_p3"]',
+        'actuated = "limb2_p3"',
+        "limbs[1].actuated",
+        "expected list, got str",
+    ),
+    (
+        "position_m = [0.0, 0.0, 0.3]",
+        "position_m = [0.0, 0.3]",
+        "reference_point.position_m",
+        "expected a list of 3 numbers",
+    ),
+    ('kind = "cylinder"', 'kind = "sphere"', "task_space.kind", "unknown kind 'sphere'"),
+    (
+        "rings = [8, 16, 24]",
+        "rings = [8, 16.5, 24]",
+        "task_space.rings",
+        "expected a list of integers",
+    ),
+    (
+        "rings = [8, 16, 24]",
+        'rings = [8, "16", [24]]',
+        "task_space.rings",
+        "expected a list of numbers",
+    ),
+    ("beta = [0.5, 1.0,", 'beta = ["0.5x", 1.0,', "design.beta", "expected a list of numbers"),
+    (
+        'target = "0.05 mm"',
+        'target = "0.05 furlong"',
+        "design.target",
+        "design.target: unknown unit 'furlong'",
+    ),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "key", "problem"), MISSING_KEYS + MISTYPED_VALUES)
+def test_toml_with_a_missing_or_mistyped_key(tmp_path, old, new, key, problem):
     folder = copy_robot(tmp_path, old, new)
     with pytest.raises(MechanismFormatError) as info:
         load_mechanism(folder)
     assert type(info.value) is MechanismFormatError
     assert info.value.key == key
     assert str(info.value).startswith(f"{folder / 'mechanism.toml'}: key '{key}': {problem}")
-
-
-@pytest.mark.parametrize(
-    ("old", "new", "key", "problem"),
-    [
-        (
-            "radius_m = 0.6",
-            'radius_m = "0.6"',
-            "task_space.radius_m",
-            "expected float or int, got str '0.6'",
-        ),
-        ("layers = 3", "layers = 3.0", "task_space.layers", "expected int, got float 3.0"),
-        (
-            'actuated = ["limb2_p3"]',
-            'actuated = "limb2_p3"',
-            "limbs[1].actuated",
-            "expected list, got str",
-        ),
-        (
-            "position_m = [0.0, 0.0, 0.3]",
-            "position_m = [0.0, 0.3]",
-            "reference_point.position_m",
-            "expected a list of 3 numbers",
-        ),
-        ('kind = "cylinder"', 'kind = "sphere"', "task_space.kind", "unknown kind 'sphere'"),
-        ("rings = [8, 16, 24]", "rings = [8, 16.5, 24]", "task_space.rings", "list of integers"),
-        ("rings = [8, 16, 24]", 'rings = [8, "16", [24]]', "task_space.rings", "list of numbers"),
-        ("beta = [0.5, 1.0,", 'beta = ["0.5x", 1.0,', "design.beta", "list of numbers"),
-        (
-            'target = "0.05 mm"',
-            'target = "0.05 furlong"',
-            "design.target",
-            "unknown unit 'furlong'",
-        ),
-    ],
-)
-def test_toml_with_a_mistyped_value(tmp_path, old, new, key, problem):
-    folder = copy_robot(tmp_path, old, new)
-    with pytest.raises(MechanismFormatError) as info:
-        load_mechanism(folder)
-    assert type(info.value) is MechanismFormatError
-    assert info.value.key == key
-    assert str(info.value).startswith(f"{folder / 'mechanism.toml'}: key '{key}': ")
-    assert problem in str(info.value)
 
 
 def test_folder_without_mechanism_toml(tmp_path):
