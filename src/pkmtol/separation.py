@@ -15,7 +15,8 @@ Reciprocal product = ``wrench · twist`` (power; twist ``[v; ω]``, wrench ``[f;
 Projecting the limb's twist equation ``$_t = T_i q̇ + E_i η_i`` on the wrenches removes the
 unknown passive motions: ``W_aᵀ $_t = Λ_a ξ_a + G_a η_a`` (7) and ``W_cᵀ $_t = G_c η_c`` (8). With
 ``W = [W_a W_c]`` square and invertible, the pose error twist is
-``$_t = W⁻ᵀ [Λ_a ξ_a + G_a η_a; G_c η_c]``; the actuator correction of Eq. 25,
+``$_t = W⁻ᵀ [Λ_a ξ_a + G_a η_a; G_c η_c]`` (over-constrained mechanisms, ``W`` wider than 6 and of
+rank 6: the least-squares solution, the rest reported as an assembly error); the actuator correction of Eq. 25,
 ``ξ_a ← ξ_a − Λ_a⁻¹ (Λ_a ξ_a + G_a η_a)``, leaves the uncompensatable twist ``W⁻ᵀ [0; G_c η_c]``.
 """
 
@@ -61,6 +62,9 @@ class Separation:
         lever_m: Shape (3,): ``l``, vector O' → P in K [m].
         J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23).
         J_total: Shape (3, n): position error of P without compensation (traditional method).
+        redundancy: ``f + c − 6``: number of linearly dependent wrenches (over-constraint).
+        incompatible_map: Shape (f + c, n): ``Y − Wᵀ twist_map``; non-zero columns are errors that
+            an over-constrained mechanism cannot assemble with rigid links (assembly errors).
     """
 
     pose: Pose
@@ -80,6 +84,8 @@ class Separation:
     lever_m: np.ndarray
     J: np.ndarray
     J_total: np.ndarray
+    redundancy: int = 0
+    incompatible_map: np.ndarray | None = None
 
 
 class MobilityError(PkmtolError):
@@ -155,22 +161,26 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
     wa = np.array(W_a).T.reshape(6, -1)
     wcm = np.array(W_c).T.reshape(6, -1)
     W = np.hstack([wa, wcm])
-    if W.shape[1] != 6:
+    if W.shape[1] < 6:
         raise MobilityError(
-            f"{wa.shape[1]} actuation + {wcm.shape[1]} constraint wrenches at P = "
-            f"{pose.p_m} m; pkmtol needs exactly 6 (f actuators + 6 − f constraints). "
+            f"only {wa.shape[1]} actuation + {wcm.shape[1]} constraint wrenches at P = "
+            f"{pose.p_m} m; the platform keeps {6 - W.shape[1]} uncontrolled freedom(s). "
             "Check the actuated joints in mechanism.toml"
         )
     sv = np.linalg.svd(W, compute_uv=False)
-    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+    cond = float(sv[0] / sv[5]) if sv[5] > 0 else np.inf
     if cond > W_SINGULAR_CONDITION:
         raise SingularPoseError("the wrench matrix W", cond, pose.p_m)
     Y_a = np.array(Y_rows_a).reshape(-1, n)
     Y_c = np.array(Y_rows_c).reshape(-1, n)
-    W_inv_T = np.linalg.inv(W).T
     f = wa.shape[1]
-    twist_map = W_inv_T @ np.vstack([Y_a, Y_c])
+    # W is 6 × (f + c). Square: W⁻ᵀ. Over-constrained (f + c > 6, rank 6): the least-squares twist
+    # (Wᵀ)⁺ y, and y − Wᵀ(Wᵀ)⁺y is the part no rigid platform motion can satisfy (assembly error).
+    W_inv_T = np.linalg.inv(W).T if W.shape[1] == 6 else np.linalg.pinv(W.T)
+    Y = np.vstack([Y_a, Y_c])
+    twist_map = W_inv_T @ Y
     unc = W_inv_T[:, f:] @ Y_c
+    incompatible = Y - W.T @ twist_map
     lever = rot @ mechanism.reference_point_m
     to_p = np.hstack([np.eye(3), -pin.skew(lever)])
     lam_arr = np.array(lam)
@@ -192,4 +202,6 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         lever_m=lever,
         J=to_p @ unc,
         J_total=to_p @ twist_map,
+        redundancy=W.shape[1] - 6,
+        incompatible_map=incompatible,
     )
