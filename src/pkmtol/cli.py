@@ -19,8 +19,13 @@ import numpy as np
 
 from pkmtol import __version__
 from pkmtol.check import CheckReport, JointReport, check_mechanism
+from pkmtol.design import DesignOptions, DesignResult, allocate
+from pkmtol.error_table import error_table
 from pkmtol.exceptions import PkmtolError
 from pkmtol.mechanism import load_mechanism
+from pkmtol.report import check_output_folder, summary_text, text_table, write_atomic, write_outputs
+from pkmtol.sweep import CLASSES
+from pkmtol.units import parse_length
 
 #: Exit code of a pkmtol error (bad input or an impossible request).
 EXIT_ERROR = 2
@@ -46,6 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PkmtolError as err:
         print(f"pkmtol: error: {err}", file=sys.stderr)
         return EXIT_ERROR
+    except BrokenPipeError:  # output piped into `head` and closed early
+        sys.stderr.close()
+        return 0
 
 
 # --- check -------------------------------------------------------------------------------
@@ -168,9 +176,114 @@ def _mm(p_m: np.ndarray) -> str:
     return "(" + ", ".join(f"{round(1e3 * x, 1) + 0.0:.1f}" for x in p_m) + ") mm"
 
 
+# --- errors ------------------------------------------------------------------------------
+
+
+def _add_errors(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "errors",
+        help="classify every geometric error parameter; sensitivities at the worst pose",
+        description="Build the error model over the task-space grid, classify every parameter "
+        "(absorbed / compensatable / uncompensatable) and print its sensitivity at the most "
+        "error-sensitive pose.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None,
+                   help="parameter set (default: dh when every limb has a D–H table, else urdf)")
+    p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
+    p.set_defaults(run=_run_errors)
+
+
+def _run_errors(args: argparse.Namespace) -> int:
+    table = error_table(load_mechanism(args.robot), args.pset)
+    text = table.to_json()  # rendered before anything is printed or written
+    wp = table.worst_point_m * 1e3
+    counts = {c: table.classes.count(c) for c in CLASSES}
+    print(f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
+          + ", ".join(f"{counts[c]} {c}" for c in CLASSES))
+    print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
+    rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
+    for p, c, s, su in zip(table.pset.parameters, table.classes, table.sensitivity,
+                           table.sensitivity_uncompensated, strict=True):
+        unit = "µm/µm" if p.unit == "m" else "µm/µrad"
+        rows.append([p.name, p.unit, c, f"{s:.4f} {unit}", f"{su:.4f} {unit}"])
+    print(text_table(rows))
+    if args.json is not None:
+        write_atomic(args.json, text.encode())
+        print(f"wrote {args.json}")
+    return 0
+
+
+# --- allocate ----------------------------------------------------------------------------
+
+
+def _add_allocate(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "allocate",
+        help="the main job: tolerance table for a required accuracy and reliability",
+        description="Error model, sensitive-pose search, FOSM tolerance allocation over the β "
+        "series (the paper's Table III), verification by Monte Carlo (linear model and exact "
+        "kinematics) and the traditional method for comparison. Prints the tables and writes "
+        "allocation.json, allocation.csv and allocation.md (and figures) into --out.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument("--target", default=None,
+                   help="required accuracy Δλ* at P, e.g. 0.05mm or 50um (default: mechanism.toml)")
+    p.add_argument("--beta", type=float, nargs="+", default=None,
+                   help="reliability index of the design (one value) or the whole β series "
+                   "(several; the design β is then --design-beta or the mechanism's)")
+    p.add_argument("--design-beta", type=float, default=None, help="β of the verified design")
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
+    p.add_argument("--exact-samples", type=int, default=1_000,
+                   help="exact-kinematics verification samples per distribution (default 1000)")
+    p.add_argument("--verification-poses", type=int, default=2_000,
+                   help="distinct random task-space poses of the verification (default 2000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default: out/<robot name>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(run=_run_allocate)
+
+
+def _run_allocate(args: argparse.Namespace) -> int:
+    mech = load_mechanism(args.robot)
+    target = None if args.target is None else parse_length(args.target, "--target")
+    betas = design_beta = None
+    if args.beta is not None and len(args.beta) == 1:
+        design_beta = args.beta[0]
+    elif args.beta is not None:
+        betas = tuple(args.beta)
+    if args.design_beta is not None:
+        design_beta = args.design_beta
+    opts = DesignOptions(
+        target_m=target, betas=betas, design_beta=design_beta, parameter_set=args.pset,
+        samples=args.samples, verification_poses=args.verification_poses,
+        exact_samples=args.exact_samples, seed=args.seed,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    out = args.out if args.out is not None else Path("out") / mech.name
+    check_output_folder(out)
+    result = allocate(mech, opts)
+    print(summary_text(result), end="")
+    print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
+    for path in write_outputs(result, out, extra=_figures(result)):
+        print(f"wrote {path}")
+    return 0
+
+
+def _figures(result: DesignResult) -> dict[str, bytes]:
+    """Figure files (name → bytes) when matplotlib is installed, else none."""
+    try:
+        from pkmtol.figures import render_figures
+    except ImportError:
+        return {}
+    return render_figures(result)
+
+
 # --- the parser --------------------------------------------------------------------------
 
-_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_check]
+_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_check, _add_errors, _add_allocate]
 
 
 def _parser() -> argparse.ArgumentParser:

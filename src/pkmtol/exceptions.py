@@ -25,13 +25,15 @@ class MechanismFormatError(PkmtolError):
 
     Attributes:
         path: The offending file.
-        key: Dotted key of the offending entry (e.g. ``limbs[2].actuated``).
+        key: Dotted key of the offending entry (e.g. ``limbs[2].actuated``); ``"-"`` for the
+            whole file.
     """
 
     def __init__(self, path: Path | str, key: str, problem: str) -> None:
         self.path = Path(path)
         self.key = key
-        super().__init__(f"{self.path}: key '{key}': {problem}")
+        where = "" if key == "-" else f" key '{key}':"
+        super().__init__(f"{self.path}:{where} {problem}")
 
 
 class URDFError(PkmtolError):

@@ -139,7 +139,7 @@ def comparison_rows(r: DesignResult) -> list[list[str]]:
     return rows
 
 
-def _text_table(rows: list[list[str]]) -> str:
+def text_table(rows: list[list[str]]) -> str:
     widths = [max(len(row[c]) for row in rows) for c in range(len(rows[0]))]
     lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w) for c, (cell, w) in enumerate(zip(row, widths, strict=True))) for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
@@ -154,7 +154,7 @@ def _md_table(rows: list[list[str]]) -> str:
 
 def summary_text(r: DesignResult, markdown: bool = False) -> str:
     """The whole report as terminal text or Markdown."""
-    table = _md_table if markdown else _text_table
+    table = _md_table if markdown else text_table
     h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
     col = r.design_column
     counts = {c: r.classes.count(c) for c in ("absorbed", "compensatable", "uncompensatable")}
@@ -239,17 +239,26 @@ def write_outputs(r: DesignResult, out_dir: Path | str, extra: dict[str, bytes] 
         "allocation.md": summary_text(r, markdown=True).encode(),
     }
     contents.update(extra or {})
+    check_output_folder(out)
+    written = []
+    for name, data in contents.items():
+        write_atomic(out / name, data)
+        written.append(out / name)
+    return written
+
+
+def check_output_folder(out: Path) -> None:
+    """Create ``out`` if needed and make sure it is writable (before any long computation).
+
+    Raises:
+        OutputError: it cannot be created or written.
+    """
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(out, f"{err.strerror}; choose another --out folder") from err
     if not os.access(out, os.W_OK):
         raise OutputError(out, "folder is not writable; choose another --out folder")
-    written = []
-    for name, data in contents.items():
-        write_atomic(out / name, data)
-        written.append(out / name)
-    return written
 
 
 def write_atomic(path: Path, data: bytes) -> None:
@@ -261,6 +270,9 @@ def write_atomic(path: Path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file ordinary permissions
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
