@@ -240,6 +240,13 @@ def _add_allocate(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--verification-poses", type=int, default=2_000,
                    help="distinct random task-space poses of the verification (default 2000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--method", choices=["fosm", "exact", "cost"], default="fosm",
+                   help="fosm: the paper's Eq. 20 (default); exact: equal-effect shape scaled so "
+                   "that the exact reliability equals Φ(β); cost: cheapest tolerances with exact "
+                   "reliability ≥ Φ(β) at every grid pose")
+    p.add_argument("--criterion", choices=["worst", "every", "average"], default="every",
+                   help="with --method exact: reach Φ(β) at the worst pose, at every grid pose "
+                   "(default) or on average")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default: out/<robot name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -259,7 +266,8 @@ def _run_allocate(args: argparse.Namespace) -> int:
     opts = DesignOptions(
         target_m=target, betas=betas, design_beta=design_beta, parameter_set=args.pset,
         samples=args.samples, verification_poses=args.verification_poses,
-        exact_samples=args.exact_samples, seed=args.seed,
+        exact_samples=args.exact_samples, seed=args.seed, method=args.method,
+        criterion=args.criterion,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
     out = args.out if args.out is not None else Path("out") / mech.name

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pkmtol.allocation import check_design, fosm_tolerances, sensitivities
+from pkmtol.cost import cost_model, cost_optimal
+from pkmtol.exact_design import CRITERIA, ClaimRow, claimed_vs_true, scale_design
 from pkmtol.error_model import ParameterSet, default_set, parameter_set
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics import ClosedChain
@@ -44,6 +46,13 @@ class DesignOptions:
         exact_samples: Exact-kinematics verification subsample size per distribution.
         seed: Random seed (same seed, same numbers).
         progress: Show progress bars.
+        method: ``fosm`` (the paper's Eq. 20), ``exact`` (equal-effect shape scaled so that the
+            exact Gaussian reliability equals Φ(design β)) or ``cost`` (cost-optimal tolerances
+            with exact reliability ≥ Φ(design β) at every grid pose).
+        criterion: For ``exact``: where R* must hold — ``worst`` pose, ``every`` grid pose, or
+            on ``average`` over the grid.
+        claim_poses: Random task-space poses over which the claimed-vs-true table averages the
+            exact reliability (the first of the verification poses).
     """
 
     target_m: float | None = None
@@ -55,6 +64,9 @@ class DesignOptions:
     exact_samples: int = 1_000
     seed: int = 0
     progress: bool = False
+    method: str = "fosm"
+    criterion: str = "every"
+    claim_poses: int = 300
 
 
 @dataclass(frozen=True)
@@ -73,6 +85,31 @@ class Traditional:
     worst_index: int
     sensitivity: np.ndarray
     tolerance: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class MethodDesign:
+    """A design by the ``exact`` or ``cost`` method (tolerances of the η_c parameters, SI).
+
+    Attributes:
+        method: ``exact`` or ``cost``.
+        criterion: ``worst`` / ``every`` / ``average`` (``every`` for cost).
+        target_reliability: R* = Φ(design β).
+        sigma: Tolerances (len(uncompensatable),) [SI].
+        reliability: Exact Gaussian R at each grid pose.
+        cost: Total cost of ``sigma`` under the cost model.
+        reference_sigma: The equal-effect design scaled to the same true R (min over the grid).
+        reference_cost: Its cost.
+    """
+
+    method: str
+    criterion: str
+    target_reliability: float
+    sigma: np.ndarray
+    reliability: np.ndarray
+    cost: float
+    reference_sigma: np.ndarray
+    reference_cost: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,6 +133,9 @@ class DesignResult:
         tolerances: Shape (n_params, len(betas)): FOSM tolerances (nan for parameters not allocated).
         verification: Per distribution, the verification of the design-β tolerances.
         traditional: The traditional method.
+        claims: Claimed Φ(β) vs true reliability of each FOSM design (β series).
+        method_design: The ``exact`` or ``cost`` design when asked for (None for ``fosm``); the
+            verification then belongs to it.
         timings_s: Wall time of each stage [s].
     """
 
@@ -115,6 +155,8 @@ class DesignResult:
     tolerances: np.ndarray
     verification: dict[str, Verification]
     traditional: Traditional
+    claims: list[ClaimRow] = field(default_factory=list)
+    method_design: MethodDesign | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -149,6 +191,10 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     ):
         if int(value) != value or value < low:
             raise InvalidRequestError(f"{name} must be an integer ≥ {low}, got {value}")
+    if opt.method not in ("fosm", "exact", "cost"):
+        raise InvalidRequestError(f"unknown method {opt.method!r}; use fosm, exact or cost")
+    if opt.criterion not in CRITERIA:
+        raise InvalidRequestError(f"unknown criterion {opt.criterion!r}; use {', '.join(CRITERIA)}")
     timings: dict[str, float] = {}
     rng = np.random.default_rng(opt.seed)
     pset = parameter_set(mechanism, opt.parameter_set or default_set(mechanism))
@@ -182,10 +228,26 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     rnd = sweep(mechanism, pset, points, chain, guesses=guesses, progress=opt.progress)
     timings["verification poses"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    claims = claimed_vs_true(
+        grid.J[worst][:, unc], rnd.J[: opt.claim_poses][:, :, unc], tol[unc], betas, target,
+        opt.samples, rng,
+    )
+    timings["claimed vs true reliability"] = time.perf_counter() - t0
+
+    method_design = None
+    verified = tol[unc, design_col]
+    if opt.method != "fosm":
+        t0 = time.perf_counter()
+        method_design = _method_design(mechanism, pset, grid, unc, tol[unc, design_col], target,
+                                       design_beta, worst, opt)
+        verified = method_design.sigma
+        timings[f"{opt.method} design"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
     ver = {}
     for dist in DISTRIBUTIONS:
         ver[dist] = verify(
-            mechanism, pset, rnd, unc, tol[unc, design_col], target, dist,
+            mechanism, pset, rnd, unc, verified, target, dist,
             opt.samples, opt.exact_samples, rng, progress=opt.progress,
         )
     timings["verification"] = time.perf_counter() - t0
@@ -224,5 +286,43 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         tolerances=tol,
         verification=ver,
         traditional=traditional,
+        claims=claims,
+        method_design=method_design,
         timings_s=timings,
+    )
+
+
+def _method_design(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    grid: Sweep,
+    unc: np.ndarray,
+    fosm_sigma: np.ndarray,
+    target: float,
+    design_beta: float,
+    worst: int,
+    opt: DesignOptions,
+) -> MethodDesign:
+    """The ``exact`` or ``cost`` design at R* = Φ(design β)."""
+    r_star = float(reliability_fosm(design_beta))
+    J = grid.J[:, :, unc]
+    model = cost_model([pset.parameters[i] for i in unc], mechanism.extra.get("cost"))
+    reference = scale_design(J, fosm_sigma, target, r_star, "every", worst)
+    if opt.method == "exact":
+        d = scale_design(J, fosm_sigma, target, r_star, opt.criterion, worst)
+        sigma, rel, criterion = d.sigma, d.reliability, opt.criterion
+    elif opt.method == "cost":
+        c = cost_optimal(J, model, target, r_star, reference.sigma, [pset.names[i] for i in unc])
+        sigma, rel, criterion = c.sigma, c.reliability, "every"
+    else:
+        raise InvalidRequestError(f"unknown method {opt.method!r}; use fosm, exact or cost")
+    return MethodDesign(
+        method=opt.method,
+        criterion=criterion,
+        target_reliability=r_star,
+        sigma=sigma,
+        reliability=rel,
+        cost=model.cost(sigma),
+        reference_sigma=reference.sigma,
+        reference_cost=model.cost(reference.sigma),
     )

@@ -327,6 +327,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         design_beta=design_beta,
         root=folder,
         description=r.get("description", str, default=""),
+        extra={"cost": r.get("cost", dict, default={})},
     )
     check_home(mech)
     return mech

@@ -87,6 +87,32 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
             "worst_index": r.worst_index,
         },
         "verification": ver,
+        "verified_design": "fosm" if r.method_design is None else r.method_design.method,
+        "claimed_vs_true": [
+            {
+                "beta": c.beta,
+                "claimed": c.claimed,
+                "exact_gaussian_worst_pose": c.exact_worst,
+                "exact_gaussian_task_space_mean": c.exact_task_space,
+                "exact_gaussian_task_space_min": c.exact_task_space_min,
+                "uniform_sigma_worst_pose": list(c.uniform_sigma_worst),
+                "uniform_sqrt3_sigma_worst_pose": list(c.uniform_sqrt3_worst),
+                "uniform_sigma_task_space": list(c.uniform_sigma_task_space),
+                "uniform_sqrt3_sigma_task_space": list(c.uniform_sqrt3_task_space),
+            }
+            for c in r.claims
+        ],
+        "method_design": None if r.method_design is None else {
+            "method": r.method_design.method,
+            "criterion": r.method_design.criterion,
+            "target_reliability": r.method_design.target_reliability,
+            "parameters": [r.pset.names[i] for i in r.uncompensatable],
+            "tolerance": r.method_design.sigma.tolist(),
+            "reliability_grid": r.method_design.reliability.tolist(),
+            "cost": r.method_design.cost,
+            "equal_effect_same_true_r_tolerance": r.method_design.reference_sigma.tolist(),
+            "equal_effect_same_true_r_cost": r.method_design.reference_cost,
+        },
         "traditional": {
             "design_point_m": r.worst_point_m.tolist(),
             "own_worst_point_m": r.grid.points_m[r.traditional.worst_index].tolist(),
@@ -175,6 +201,11 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         table(table_rows(r)),
         h(f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"),
     ]
+    out[-1] = h(
+        f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"
+        if r.method_design is None
+        else f"Verification of the '{r.method_design.method}' design (Δλ* = {r.target_m * 1e6:g} µm)"
+    )
     vrows = [["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]]
     for name, v in r.verification.items():
         for label, s in (("linear", v.linear), ("exact", v.exact), ("linear (same subsample)", v.linear_subsample)):
@@ -184,6 +215,11 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
                           f"{100 * s.failure_fraction:.2f}", f"{100 * s.failure_ci95[0]:.2f}–{100 * s.failure_ci95[1]:.2f}",
                           f"{100 * s.reliability:.2f}"])
     out += [table(vrows), "", f"claimed by FOSM: R = {100 * r.reliability_fosm[col]:.2f} %"]
+    out += [h("Claimed vs true reliability of the FOSM designs (R in %)"), table(claim_rows(r)),
+            "", "exact: Gaussian errors σ_i, exact distribution of Δλ = ‖J η‖ (no sampling); uniform: "
+            "Monte Carlo with 95 % interval; task space: random poses uniform in its volume"]
+    if r.method_design is not None:
+        out += [h(f"Design by the '{r.method_design.method}' method"), *method_lines(r), "", table(method_rows(r))]
     t = r.traditional
     fin = np.isfinite(t.tolerance)
     shared = [
@@ -203,6 +239,46 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         table(comparison_rows(r)),
     ]
     return "\n".join(out) + "\n"
+
+
+def claim_rows(r: DesignResult) -> list[list[str]]:
+    """Rows of the claimed-vs-true reliability table."""
+    def ci(c: tuple[float, float, float]) -> str:
+        return f"{100 * c[0]:.2f} ({100 * c[1]:.2f}–{100 * c[2]:.2f})"
+    rows = [["β", "claimed Φ(β)", "exact, worst pose", "exact, task space mean (min)",
+             "uniform ±σ, worst", "uniform ±√3σ, worst", "uniform ±σ, task space", "uniform ±√3σ, task space"]]
+    for c in r.claims:
+        rows.append([f"{c.beta:g}", f"{100 * c.claimed:.2f}", f"{100 * c.exact_worst:.4f}",
+                     f"{100 * c.exact_task_space:.4f} ({100 * c.exact_task_space_min:.4f})",
+                     ci(c.uniform_sigma_worst), ci(c.uniform_sqrt3_worst),
+                     ci(c.uniform_sigma_task_space), ci(c.uniform_sqrt3_task_space)])
+    return rows
+
+
+def method_lines(r: DesignResult) -> list[str]:
+    """Summary lines of an exact/cost design."""
+    m = r.method_design
+    assert m is not None
+    lines = [
+        f"target R* = Φ({r.design_beta:g}) = {100 * m.target_reliability:.4f} %, criterion '{m.criterion}': "
+        f"exact R at the worst pose {100 * m.reliability[r.worst_index]:.4f} %, min over the grid "
+        f"{100 * m.reliability.min():.4f} %, mean {100 * m.reliability.mean():.4f} %",
+        f"total cost {m.cost:.4g} (cost model of docs/theory.md); the equal-effect design with the same "
+        f"true R (min over the grid) costs {m.reference_cost:.4g}",
+    ]
+    return lines
+
+
+def method_rows(r: DesignResult) -> list[list[str]]:
+    """Per-parameter tolerances of the exact/cost design beside the equal-effect ones."""
+    m = r.method_design
+    assert m is not None
+    rows = [["parameter", "unit", f"{m.method} design", "equal effect, same true R", "FOSM β=" + f"{r.design_beta:g}"]]
+    for k, i in enumerate(r.uncompensatable):
+        p = r.pset.parameters[i]
+        rows.append([p.name, display_unit(p.unit), _fmt_tol(m.sigma[k], p.unit),
+                     _fmt_tol(m.reference_sigma[k], p.unit), _fmt_tol(r.tolerances[i, r.design_column], p.unit)])
+    return rows
 
 
 def to_csv(r: DesignResult) -> str:
