@@ -255,9 +255,10 @@ def test_unreachable_target():
         ClosedChain(mech).inverse(np.array([3.0, 0.0, 0.0]), q0)
     assert type(info.value) is UnreachableTargetError
     np.testing.assert_array_equal(info.value.target_m, [3.0, 0.0, 0.0])
+    assert info.value.limb == "arm"
     assert str(info.value).startswith(
-        "target P = (3000.000, 0.000, 0.000) mm is unreachable: the closure equations have no "
-        "solution near the initial guess"
+        "limb 'arm': target P = (3000.000, 0.000, 0.000) mm is unreachable: the closure equations "
+        "have no solution near the initial guess"
     )
     assert "move the target (or the task space) inside the workspace" in str(info.value)
 

@@ -171,6 +171,16 @@ def test_malformed_urdf_xml(tmp_path):
     assert "malformed XML" in str(info.value)
 
 
+def test_limbs_with_different_root_links(tmp_path):
+    folder = copy_robot(tmp_path)
+    urdf = folder / "limb3.urdf"
+    urdf.write_text(urdf.read_text(encoding="utf-8").replace('"base"', '"ground"'), encoding="utf-8")
+    with pytest.raises(URDFError) as info:
+        load_mechanism(folder)
+    assert info.value.limb == "limb3"
+    assert "its root link is 'ground' but limb 'limb1' starts at 'base'" in str(info.value)
+
+
 def test_unknown_actuated_joint(tmp_path):
     folder = copy_robot(tmp_path, 'actuated = ["limb2_p3"]', 'actuated = ["limb2_slide"]')
     with pytest.raises(UnknownJointError) as info:

@@ -95,6 +95,7 @@ class ClosedChain:
         self._jac = np.zeros((n_rows + 3, int(self.offsets[-1])))
         self._res = np.zeros(n_rows + 3)
         self._last: tuple[np.ndarray, np.ndarray] | None = None  # (q, Jacobian) of last inverse
+        self._failed_q: np.ndarray | None = None  # last iterate of a solve that did not converge
 
     # --- public ---------------------------------------------------------------------------
 
@@ -111,7 +112,14 @@ class ClosedChain:
         free[self.actuated_idx] = False
         try:
             q, _, _ = self._newton(q0, free, None, "home closure")
-        except (ConvergenceError, SingularPoseError) as err:
+        except SingularPoseError as err:
+            worst = self._worst_limb(q0)
+            if max(worst[2], worst[3]) > 1e-9:
+                raise PlatformMismatchError(*worst) from err
+            raise SingularPoseError(
+                "the closure Jacobian at the home configuration (actuators held)", err.condition
+            ) from err
+        except ConvergenceError as err:
             raise PlatformMismatchError(*self._worst_limb(q0)) from err
         return q
 
@@ -134,8 +142,12 @@ class ClosedChain:
         try:
             q, cond, res = self._newton(q0, free, target, "inverse kinematics")
         except ConvergenceError as err:
+            limb = self._worst_limb(self._failed_q)[0] if self._failed_q is not None else None
             raise UnreachableTargetError(
-                target, f"the closure equations have no solution near the initial guess ({err.residual:.2g} left)"
+                target,
+                "the closure equations have no solution near the initial guess "
+                f"({err.residual:.2g} left; the largest closure gap is at this limb)",
+                limb=limb,
             ) from err
         except SingularPoseError as err:
             raise SingularPoseError(err.what, err.condition, target) from err
@@ -265,6 +277,7 @@ class ClosedChain:
                 step *= 0.5 / big
             q[free] -= step
             prev_norm = res_norm
+        self._failed_q = q.copy()
         s = np.linalg.svd(self._evaluate(q, target)[1][:, free], compute_uv=False)
         cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
         if cond > SINGULAR_CONDITION and res_norm < SINGULAR_RESIDUAL:

@@ -329,8 +329,28 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         description=r.get("description", str, default=""),
         extra={"cost": r.get("cost", dict, default={})},
     )
+    check_root_links(mech)
     check_home(mech)
     return mech
+
+
+def check_root_links(mech: Mechanism) -> None:
+    """Raise URDFError unless every limb starts from the same root link (the base frame K)."""
+    roots = [_root_link(lb.model) for lb in mech.limbs]
+    for lb, root in zip(mech.limbs[1:], roots[1:], strict=True):
+        if root != roots[0]:
+            raise URDFError(
+                lb.name, lb.urdf_path,
+                f"its root link is '{root}' but limb '{mech.limbs[0].name}' starts at '{roots[0]}'; "
+                "every limb must start from the same base link (frame K)",
+            )
+
+
+def _root_link(model: pin.Model) -> str:
+    for f in model.frames:
+        if f.type == pin.FrameType.BODY and f.parentJoint == 0:
+            return str(f.name)
+    return "universe"
 
 
 def _load_urdf(limb: str, path: Path) -> tuple[pin.Model, Any]:
