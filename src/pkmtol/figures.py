@@ -1,0 +1,292 @@
+"""The report's figures (matplotlib, optional extra ``pkmtol[plots]``).
+
+* :func:`sensitivity_figure` — the sensitivities ``ω_i`` of the uncompensatable errors η_c at the
+  design point (the paper's Fig. 8), one bar per η_c, lengths and angles told apart;
+* :func:`histogram_figure` — the verification's Δλ samples (Gaussian errors at the design-β
+  tolerances, linear model; the paper's Fig. 10) with the Δλ* line; the failure fraction (and
+  its 95 % interval, the FOSM prediction ``1 − Φ(β)`` and the exact-kinematics subsample's
+  fraction when run) in the legend;
+* :func:`tolerance_figure` — traditional (all errors, no compensation) vs new tolerances of η_c
+  at the design β on a log scale (the paper's Fig. 11).
+
+:func:`write_figures` writes all three as PNG and SVG. Figures are drawn on matplotlib's Agg
+canvas through the object API (``matplotlib.figure.Figure``): pyplot and the global backend are
+left alone, so this works headless and inside notebooks alike.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pkmtol.design import DesignResult
+from pkmtol.exceptions import InvalidRequestError, OutputError, PkmtolError
+
+#: Number of bins of the Δλ histogram.
+HISTOGRAM_BINS = 40
+#: File stem of each figure.
+FIGURES = ("sensitivity", "dlambda_histogram", "tolerances")
+FORMATS = ("png", "svg")
+
+LENGTH_COLOUR = "#3b6fb6"
+ANGLE_COLOUR = "#e08a1e"
+SAFE_COLOUR = "#2e9e4f"
+FAILED_COLOUR = "#d62728"
+
+_GREEK = {"δ": r"\delta ", "θ": r"\theta ", "φ": r"\phi ", "α": r"\alpha ", "β": r"\beta ",
+          "γ": r"\gamma ", "ψ": r"\psi ", "λ": r"\lambda "}
+
+
+class FiguresError(PkmtolError):
+    """The figures cannot be drawn: matplotlib is missing."""
+
+
+def _mpl() -> tuple[Any, Any]:
+    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as err:
+        raise FiguresError(
+            f"the figures need matplotlib ({err}); install it with "
+            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`)"
+        ) from err
+    return Figure, FigureCanvasAgg
+
+
+def _new_figure(size: tuple[float, float]) -> Any:
+    figure_cls, canvas_cls = _mpl()
+    fig = figure_cls(figsize=size, layout="constrained")
+    canvas_cls(fig)
+    return fig
+
+
+def tex_name(name: str) -> str:
+    """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``)."""
+    if "_{" not in name:
+        return name
+    return "$" + "".join(_GREEK.get(c, c) for c in name) + "$"
+
+
+def _unit_colour(unit: str) -> str:
+    return LENGTH_COLOUR if unit == "m" else ANGLE_COLOUR
+
+
+def sensitivity_figure(result: DesignResult) -> Any:
+    """Bars of the sensitivities ``ω_i = ‖J[:, i]‖`` of η_c at the design point (Fig. 8)."""
+    from matplotlib.patches import Patch
+
+    unc = np.asarray(result.uncompensatable, dtype=int)
+    params = [result.pset.parameters[i] for i in unc]
+    values = np.asarray(result.sensitivity, dtype=float)[unc]
+    fig = _new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
+    ax = fig.add_subplot()
+    x = np.arange(len(unc))
+    colours = [_unit_colour(p.unit) for p in params]
+    ax.bar(x, values, color=colours, edgecolor="black", linewidth=0.5)
+    ax.set_xticks(x, [tex_name(p.name) for p in params], rotation=60, ha="right")
+    ax.set_xlim(-0.7, len(unc) - 0.3)
+    ax.set_ylabel("sensitivity ω_i  [µm/µm or µm/µrad]")
+    p = result.worst_point_m * 1e3
+    ax.set_title(
+        f"{result.mechanism.name}: sensitivities of the {len(unc)} uncompensatable errors\n"
+        f"at the design point P = ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm",
+        fontsize=10,
+    )
+    ax.legend(
+        handles=[
+            Patch(facecolor=LENGTH_COLOUR, edgecolor="black", label="length error (µm/µm)"),
+            Patch(facecolor=ANGLE_COLOUR, edgecolor="black", label="angle error (µm/µrad)"),
+        ],
+        fontsize=8,
+    )
+    ax.grid(axis="y", alpha=0.3)
+    return fig
+
+
+def histogram_figure(
+    result: DesignResult, distribution: str = "gaussian", bins: int = HISTOGRAM_BINS
+) -> Any:
+    """Histogram of the verification's Δλ with the Δλ* line and the failure fraction (Fig. 10)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    if distribution not in result.verification:
+        raise InvalidRequestError(
+            f"no verification with distribution {distribution!r} "
+            f"(have: {', '.join(result.verification)})"
+        )
+    if bins < 1:
+        raise InvalidRequestError(f"bins must be ≥ 1, got {bins}")
+    ver = result.verification[distribution]
+    dl = np.asarray(ver.dlam_linear_m, dtype=float) * 1e6
+    target = result.target_m * 1e6
+    hi = max(float(dl.max()), target) * 1.02
+    edges = np.linspace(0.0, hi, bins + 1)
+    counts, _ = np.histogram(dl, edges)
+    centres = (edges[:-1] + edges[1:]) / 2
+    fig = _new_figure((7.0, 4.2))
+    ax = fig.add_subplot()
+    colours = [FAILED_COLOUR if c > target else SAFE_COLOUR for c in centres]
+    ax.bar(centres, counts, width=np.diff(edges), color=colours, edgecolor="black", linewidth=0.3)
+    ax.axvline(target, color="black", linestyle="--", linewidth=1.5)
+    st = ver.linear
+    n_safe = st.samples - round(st.failure_fraction * st.samples)
+    lo, up = st.failure_ci95
+    handles = [
+        Line2D([], [], color="black", linestyle="--", label=f"Δλ* = {target:g} µm"),
+        Patch(color=SAFE_COLOUR, label=f"safe: {n_safe} of {st.samples}"),
+        Patch(
+            color=FAILED_COLOUR,
+            label=f"failed (Δλ > Δλ*): {100 * st.failure_fraction:.2f} % "
+            f"[{100 * lo:.2f}, {100 * up:.2f}] of {st.samples}",
+        ),
+        Line2D([], [], color="none",
+               label=f"FOSM prediction 1 − Φ(β={result.design_beta:g}): "
+               f"{100 * (1 - float(_phi(result.design_beta))):.2f} %"),
+    ]
+    if ver.exact is not None:
+        handles.append(
+            Line2D([], [], color="none",
+                   label=f"exact kinematics, {ver.exact.samples} samples: "
+                   f"{100 * ver.exact.failure_fraction:.2f} % failed")
+        )
+    ax.legend(handles=handles, fontsize=8, loc="upper right")
+    ax.set_xlabel("Δλ  [µm]  (linear model, random task-space poses)")
+    ax.set_ylabel("samples")
+    ax.set_xlim(0.0, hi)
+    ax.set_title(
+        f"{result.mechanism.name}: verification, {distribution.replace('_', ' ')} errors at the "
+        f"β = {result.design_beta:g} tolerances",
+        fontsize=10,
+    )
+    ax.grid(axis="y", alpha=0.3)
+    return fig
+
+
+def _phi(x: float) -> float:
+    return 0.5 * (1.0 + math.erf(x / math.sqrt(2.0)))
+
+
+def tolerance_figure(result: DesignResult) -> Any:
+    """Traditional vs new tolerances of η_c at the design β, log scale (Fig. 11)."""
+    unc = np.asarray(result.uncompensatable, dtype=int)
+    params = [result.pset.parameters[i] for i in unc]
+    new = np.asarray(result.tolerances[unc, result.design_column], dtype=float) * 1e6
+    trad_of = dict(zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(),
+                       strict=True))
+    trad = np.array([trad_of.get(int(i), math.nan) for i in unc], dtype=float) * 1e6
+    fig = _new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
+    ax = fig.add_subplot()
+    x = np.arange(len(unc))
+    w = 0.4
+    finite = np.concatenate([v[np.isfinite(v)] for v in (new, trad)])
+    top = float(finite.max()) * 3 if finite.size else 1.0
+    ax.bar(x - w / 2, np.where(np.isfinite(trad), trad, np.nan), w, color="#9a9a9a",
+           edgecolor="black", linewidth=0.5, label="traditional (all errors, no compensation)")
+    ax.bar(x + w / 2, np.where(np.isfinite(new), new, np.nan), w, color=LENGTH_COLOUR,
+           edgecolor="black", linewidth=0.5, label="new (η_c only, compensation applied)")
+    for k, (a, b) in enumerate(zip(trad, new, strict=True)):
+        for value, dx in ((a, -w / 2), (b, w / 2)):
+            if not np.isfinite(value):
+                ax.text(k + dx, top / 3, "∞", ha="center", va="bottom", fontsize=9)
+    ax.set_yscale("log")
+    ax.set_ylim(top=top)
+    ax.set_xticks(x, [tex_name(p.name) + (" (µrad)" if p.unit == "rad" else "") for p in params],
+                  rotation=60, ha="right")
+    ax.set_xlim(-0.7, len(unc) - 0.3)
+    ax.set_ylabel("tolerance σ_i  [µm or µrad]")
+    n_comp = sum(1 for c in result.classes if c == "compensatable")
+    ratio = new / trad
+    ok = np.isfinite(ratio)
+    gain = f"; new/traditional: median ×{np.median(ratio[ok]):.2f}" if ok.any() else ""
+    ax.set_title(
+        f"{result.mechanism.name}: tolerances at β = {result.design_beta:g}, "
+        f"Δλ* = {result.target_m * 1e3:g} mm{gain}\n"
+        f"({n_comp} compensatable errors need no tolerance in the new method)",
+        fontsize=10,
+    )
+    ax.legend(fontsize=8)
+    ax.grid(axis="y", which="both", alpha=0.3)
+    return fig
+
+
+def _render(fig: Any, fmt: str, dpi: int) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=dpi, metadata={"Software": None} if fmt == "png" else
+                {"Date": None, "Creator": None})
+    return buf.getvalue()
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as err:
+        raise OutputError(path, err.strerror or str(err)) from err
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def make_figures(result: DesignResult) -> dict[str, Any]:
+    """Draw the three figures, by file stem (see :data:`FIGURES`)."""
+    return {
+        "sensitivity": sensitivity_figure(result),
+        "dlambda_histogram": histogram_figure(result),
+        "tolerances": tolerance_figure(result),
+    }
+
+
+def write_figures(
+    result: DesignResult,
+    out_dir: Path | str,
+    formats: Sequence[str] = FORMATS,
+    dpi: int = 150,
+) -> list[Path]:
+    """Write the three figures into ``out_dir`` (created if missing) as ``<stem>.<format>``.
+
+    Every figure is rendered before any file is written; each file is written through a
+    temporary file renamed over it.
+
+    Returns:
+        The files written: ``sensitivity``, ``dlambda_histogram``, ``tolerances`` in that order,
+        each in every format.
+
+    Raises:
+        FiguresError: matplotlib is missing.
+        InvalidRequestError: an unknown format.
+        OutputError: the folder or a file cannot be written.
+
+    """
+    bad = [f for f in formats if f not in ("png", "svg", "pdf")]
+    if bad or not formats:
+        raise InvalidRequestError(f"figure formats must be png, svg or pdf, got {list(formats)}")
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(out, err.strerror or str(err)) from err
+    rendered: list[tuple[Path, bytes]] = []
+    for stem, fig in make_figures(result).items():
+        for fmt in formats:
+            rendered.append((out / f"{stem}.{fmt}", _render(fig, fmt, dpi)))
+    for path, data in rendered:
+        _atomic_write(path, data)
+    return [path for path, _ in rendered]

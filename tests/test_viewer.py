@@ -1,0 +1,413 @@
+"""The meshcat scene (nodes, spheres, radii), the static page, the server's lifetime and binding."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+meshcat = pytest.importorskip("meshcat")
+
+from pkmtol.design import DesignOptions, allocate  # noqa: E402
+from pkmtol.mechanism import load_mechanism  # noqa: E402
+from pkmtol.viewer import (  # noqa: E402
+    ROOT,
+    MeshcatServer,
+    SceneOptions,
+    ViewerError,
+    build_scene,
+    export_html,
+    find_chromium,
+    screenshot,
+    show,
+)
+
+ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
+
+
+def _server_processes(parent: int | None = None) -> list[int]:
+    """Pids of live pkmtol meshcat servers (started by ``parent`` when given)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+            state = (entry / "stat").read_text().split(")")[-1].split()[0]
+        except OSError:
+            continue
+        if b"pkmtol.meshcat_server" not in argv or state == "Z":
+            continue
+        if parent is not None:
+            try:
+                i = argv.index(b"--parent-pid")
+            except ValueError:
+                continue
+            if argv[i + 1] != str(parent).encode():
+                continue
+        pids.append(int(entry.name))
+    return pids
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.fixture(scope="module")
+def result():
+    r = allocate(
+        load_mechanism(ROBOT), DesignOptions(samples=2000, exact_samples=20, verification_poses=200)
+    )
+    yield r
+    # no server started by this test process survives the module
+    if Path("/proc").is_dir():
+        assert _server_processes(os.getpid()) == []
+
+
+class RecordingWindow:
+    """A meshcat window that records commands instead of sending them."""
+
+    def __init__(self) -> None:
+        self.commands: list[dict] = []
+
+    def send(self, command) -> None:
+        self.commands.append(command.lower())
+
+
+@pytest.fixture(scope="module")
+def recorded(result):
+    window = RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    summary = build_scene(result, vis)
+    return summary, window.commands
+
+
+def _objects(commands, prefix):
+    return {
+        c["path"]: c["object"]
+        for c in commands
+        if c["type"] == "set_object" and c["path"].startswith(prefix)
+    }
+
+
+def _transforms(commands, prefix):
+    out = {}
+    for c in commands:
+        if c["type"] == "set_transform" and c["path"].startswith(prefix):
+            out[c["path"]] = np.array(c["matrix"], dtype=float).reshape(4, 4).T
+    return out
+
+
+def test_layers_each_have_their_own_path(recorded):
+    summary, commands = recorded
+    assert summary["root"] == f"/meshcat/{ROOT}"
+    assert set(summary["layers"]) == {"robot", "error_spheres", "verification", "reference", "legend"}
+    paths = {c["path"] for c in commands if c["type"] in ("set_object", "set_transform")}
+    for layer in summary["layers"].values():
+        assert any(p.startswith(f"/meshcat/{layer}/") or p == f"/meshcat/{layer}" for p in paths), layer
+    for expected in (
+        f"{ROOT}/reference/P",
+        f"{ROOT}/reference/platform_frame",
+        f"{ROOT}/verification/cloud/target",
+        f"{ROOT}/verification/cloud/safe",
+        f"{ROOT}/verification/task_space/safe",
+        f"{ROOT}/legend",
+    ):
+        assert expected in summary["nodes"], expected
+        assert f"/meshcat/{expected}" in paths, expected
+
+
+def test_one_sphere_per_grid_point_with_radius_proportional_to_sigma(result, recorded):
+    summary, commands = recorded
+    m = len(result.grid.points_m)
+    assert m == 147
+    assert summary["sphere_count"] == m
+    objs = _objects(commands, f"/meshcat/{ROOT}/error_spheres/")
+    assert len(objs) == m
+    tfs = _transforms(commands, f"/meshcat/{ROOT}/error_spheres/")
+    radii = np.empty(m)
+    for k in range(m):
+        path = f"/meshcat/{ROOT}/error_spheres/{k}"
+        geometry = objs[path]["geometries"][0]
+        assert geometry["type"] == "SphereGeometry"
+        radii[k] = geometry["radius"]
+        np.testing.assert_allclose(tfs[path][:3, 3], result.grid.points_m[k], atol=1e-12)
+    sigma = result.search.sigma_analytic_m
+    np.testing.assert_allclose(radii, summary["radius_per_sigma"] * sigma, rtol=1e-9)
+    np.testing.assert_allclose(radii, summary["sphere_radii_m"], rtol=1e-9)
+    np.testing.assert_allclose(radii / sigma, radii[0] / sigma[0], rtol=1e-9)
+    # the largest sphere is the design point, and spheres do not touch
+    assert int(np.argmax(radii)) == result.worst_index
+    d = np.linalg.norm(result.grid.points_m[:, None] - result.grid.points_m[None], axis=-1)
+    d[np.diag_indices(m)] = np.inf
+    assert 2 * radii.max() < d.min()
+    # colour map: the largest σ is the brightest (viridis yellow), the smallest the darkest
+    colours = np.array(
+        [objs[f"/meshcat/{ROOT}/error_spheres/{k}"]["materials"][0]["color"] for k in range(m)]
+    )
+    assert colours[int(np.argmax(sigma))] != colours[int(np.argmin(sigma))]
+    assert any("radius =" in line for line in summary["legend"])
+
+
+def test_design_sigma_option(result):
+    window = RecordingWindow()
+    s = build_scene(
+        result,
+        meshcat.Visualizer(window=window),
+        SceneOptions(sigma="design", layers=("error_spheres",), animate=False),
+    )
+    assert s["sigma_source"] == "design"
+    # at the design point the design-β tolerances give σ[Δλ] of the order of Δλ*
+    sig = s["sphere_sigma_m"]
+    assert 0.05 * result.target_m < sig[result.worst_index] < result.target_m
+    np.testing.assert_allclose(s["sphere_radii_m"], s["radius_per_sigma"] * sig)
+
+
+def test_robot_limbs_are_posed_consistently_at_the_design_point(result, recorded):
+    summary, commands = recorded
+    pose = result.grid.poses[result.worst_index]
+    platform = []
+    for limb in result.mechanism.limbs:
+        root = f"/meshcat/{ROOT}/robot/{limb.name}/visuals/"
+        assert f"{ROOT}/robot/{limb.name}" in summary["robot_paths"]
+        objs = _objects(commands, root)
+        assert len(objs) == limb.visual_model.ngeoms
+        tfs = _transforms(commands, root)
+        g = limb.visual_model.geometryObjects[limb.visual_model.getGeometryId("platform_0")]
+        platform.append(tfs[root + "platform_0"])
+        # geometry placements are relative to the parent joint; oMp is the platform frame's
+        joint_of_platform = limb.model.frames[limb.platform_frame].placement
+        expected = pose.oMp * joint_of_platform.inverse() * g.placement
+        np.testing.assert_allclose(platform[-1], expected.homogeneous, atol=1e-9)
+    for t in platform[1:]:
+        np.testing.assert_allclose(t, platform[0], atol=1e-9)
+    # reference point and platform frame at the same pose
+    ref = _transforms(commands, f"/meshcat/{ROOT}/reference/")
+    np.testing.assert_allclose(ref[f"/meshcat/{ROOT}/reference/P"][:3, 3], pose.p_m, atol=1e-12)
+    np.testing.assert_allclose(
+        ref[f"/meshcat/{ROOT}/reference/platform_frame"], pose.oMp.homogeneous, atol=1e-12
+    )
+
+
+def test_animation_visits_every_grid_point(result, recorded):
+    summary, commands = recorded
+    anims = [c for c in commands if c["type"] == "set_animation"]
+    assert len(anims) == 1
+    assert anims[0]["options"]["play"] is False
+    assert summary["animation_frames"] == len(result.grid.points_m)
+    tracks = {a["path"] for a in anims[0]["animations"]}
+    assert f"/meshcat/{ROOT}/reference/P" in tracks
+    assert f"/meshcat/{ROOT}/robot/limb1/visuals/platform_0" in tracks
+
+
+def test_verification_layer(result, recorded):
+    summary, commands = recorded
+    v = summary["verification"]
+    ver = result.verification["gaussian"]
+    objs = _objects(commands, f"/meshcat/{ROOT}/verification/")
+    n_points = 0
+    for name in ("safe", "failed"):
+        path = f"/meshcat/{ROOT}/verification/task_space/{name}"
+        if path in objs:
+            packed = objs[path]["geometries"][0]["data"]["attributes"]["position"]
+            assert packed["itemSize"] == 3 and packed["type"] == "Float32Array"
+            n_points += len(packed["array"].data) // 12
+    assert n_points == ver.dlam_linear_m.size == v["task_space_samples"]
+    assert v["task_space_failed"] == int(np.sum(ver.dlam_linear_m > result.target_m))
+    target = objs[f"/meshcat/{ROOT}/verification/cloud/target"]
+    assert target["geometries"][0]["radius"] == pytest.approx(v["cloud_target_radius_m"])
+    assert v["cloud_magnification"] == pytest.approx(v["cloud_target_radius_m"] / result.target_m)
+    assert 0 < v["cloud_failed"] < v["cloud_samples"]
+
+
+def test_layers_option_draws_only_those(result):
+    window = RecordingWindow()
+    s = build_scene(result, meshcat.Visualizer(window=window), SceneOptions(layers=("robot",)))
+    paths = {c["path"] for c in window.commands if c["type"] == "set_object"}
+    assert all(p.startswith(f"/meshcat/{ROOT}/robot/") for p in paths)
+    assert "sphere_count" not in s and "verification" not in s
+
+
+def test_bad_options_are_refused():
+    from pkmtol.exceptions import InvalidRequestError
+
+    with pytest.raises(InvalidRequestError):
+        SceneOptions(layers=("robots",))
+    with pytest.raises(InvalidRequestError):
+        SceneOptions(sigma="x")
+
+
+def test_missing_meshcat_is_actionable(monkeypatch, result):
+    monkeypatch.setitem(sys.modules, "meshcat", None)
+    with pytest.raises(ViewerError, match="pip install meshcat"):
+        build_scene(result, object())
+
+
+# --- the server ------------------------------------------------------------------------------
+
+
+def _listening_addresses(pid: int) -> list[str]:
+    """Local addresses (hex, as in /proc/net/tcp*) of the sockets ``pid`` listens on."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    out = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        if not Path(table).exists():
+            continue
+        for line in Path(table).read_text().splitlines()[1:]:
+            f = line.split()
+            if f[3] == "0A" and f[9] in inodes:  # LISTEN
+                out.append(f[1])
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="needs Linux /proc")
+def test_server_listens_on_loopback_only_and_is_reaped():
+    with MeshcatServer() as server:
+        assert server.zmq_url.startswith("tcp://127.0.0.1:")
+        assert server.web_url.startswith("http://127.0.0.1:")
+        addresses = []
+        for _ in range(50):  # the HTTP port opens just after the URLs are printed
+            addresses = _listening_addresses(server.pid)
+            if len(addresses) >= 2:
+                break
+            time.sleep(0.1)
+        assert len(addresses) >= 2  # ZeroMQ and HTTP
+        assert all(a.split(":")[0] == "0100007F" for a in addresses), addresses
+        pid = server.pid
+        assert _alive(pid)
+    assert not _alive(pid)
+    assert server.proc.returncode is not None
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs Linux /proc")
+def test_server_exits_when_its_parent_is_killed():
+    code = textwrap.dedent(
+        """
+        import os, sys
+        from pkmtol.viewer import MeshcatServer
+        s = MeshcatServer()
+        print(s.pid, flush=True)
+        os._exit(0)  # no atexit, no close: as if killed
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    pid = int(out.stdout.split()[0])
+    deadline = time.monotonic() + 10
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(pid)
+
+
+def test_export_html(result, tmp_path):
+    path = tmp_path / "scene.html"
+    s = export_html(result, path)
+    assert s["path"] == path and path.stat().st_size == s["bytes"]
+    page = path.read_text(encoding="utf-8")
+    assert page.count('fetch("data:application/octet-binary;base64,') >= s["sphere_count"]
+    assert 'id="pkmtol-legend"' in page and "Error spheres (147)" in page
+    assert "MeshCat.Viewer" in page
+    assert not _alive(s["server_pid"])
+    assert [p.name for p in tmp_path.iterdir()] == ["scene.html"]  # no temporary file left
+    if Path("/proc").is_dir():
+        assert _server_processes(os.getpid()) == []
+
+
+def test_export_into_missing_folder_writes_nothing(result, tmp_path):
+    from pkmtol.exceptions import OutputError
+
+    with pytest.raises(OutputError):
+        export_html(result, tmp_path / "nope" / "scene.html")
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- the page in a browser ---------------------------------------------------------------------
+
+
+def _pixels(png: Path) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(png).convert("RGB"), dtype=float)
+
+
+def _orange(img: np.ndarray) -> np.ndarray:
+    """Pixels of the prismatic legs' orange (URDF rgba 0.8 0.5 0.1), lit or shaded."""
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    return (r > 60) & (r > 1.3 * g) & (g > 1.6 * b + 5)
+
+
+@pytest.mark.skipif(find_chromium() is None, reason="no chromium binary (apt-get install chromium)")
+def test_static_page_renders_in_headless_chromium(result, tmp_path):
+    shots = {}
+    for name, layers in (
+        ("full", None),
+        ("no_robot", ("error_spheres", "verification", "reference")),
+        ("no_spheres", ("robot", "verification", "reference")),
+    ):
+        opt = SceneOptions() if layers is None else SceneOptions(layers=layers)
+        html = export_html(result, tmp_path / f"{name}.html", opt)["path"]
+        shots[name] = _pixels(screenshot(html, tmp_path / f"{name}.png", size=(1200, 900)))
+    full = shots["full"]
+    assert full.shape == (900, 1200, 3)
+    # Thresholds: an empty scene (grid, controls bar, legend) measures std 21, 1.2 % of the view
+    # not background, 70 orange pixels; this scene 40, 8 %, 3000 (swiftshader, 1200 × 900).
+    # not blank: strong pixel variation, and a good part of the view is not the white background
+    assert full.std() > 30
+    scene = full[30:700]  # below the controls bar, above the legend overlay
+    not_background = np.any(np.abs(scene - 255) > 30, axis=-1)
+    assert not_background.mean() > 0.05
+    # the robot is visible: its orange legs are there, and gone when the robot layer is hidden
+    assert _orange(full).sum() > 1500
+    assert _orange(shots["no_robot"]).sum() < 0.2 * _orange(full).sum()
+    assert np.any(np.abs(full - shots["no_robot"]) > 40, axis=-1).mean() > 0.003
+    # the spheres are visible: hiding them changes a large part of the picture
+    assert np.any(np.abs(full - shots["no_spheres"]) > 40, axis=-1).mean() > 0.03
+    if Path("/proc").is_dir():
+        assert _server_processes(os.getpid()) == []
+
+
+def test_limb_without_visuals_is_drawn_as_a_skeleton(result):
+    import dataclasses
+
+    from pkmtol.viewer import skeleton_geometry
+
+    limbs = tuple(dataclasses.replace(limb, visual_model=None) for limb in result.mechanism.limbs)
+    bare = dataclasses.replace(result, mechanism=dataclasses.replace(result.mechanism, limbs=limbs))
+    window = RecordingWindow()
+    build_scene(bare, meshcat.Visualizer(window=window), SceneOptions(layers=("robot",)))
+    for limb in limbs:
+        objs = _objects(window.commands, f"/meshcat/{ROOT}/robot/{limb.name}/visuals/")
+        expected = skeleton_geometry(limb.model).ngeoms
+        assert expected >= limb.nq  # a ball per joint, and rods
+        assert len(objs) == expected
+
+
+def test_show_serves_the_scene_on_loopback(result):
+    import urllib.request
+
+    lines: list[str] = []
+    server = show(result, block=False, out=lines.append)
+    try:
+        assert lines[0] == f"meshcat viewer: {server.web_url}"
+        assert server.web_url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(server.web_url, timeout=10) as page:
+            assert page.status == 200
+    finally:
+        server.close()
+    assert not _alive(server.pid)
