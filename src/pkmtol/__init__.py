@@ -1,19 +1,95 @@
-"""pkmtol: accuracy design of lower-mobility parallel kinematic machines on Pinocchio."""
+"""pkmtol: accuracy design of lower-mobility parallel kinematic machines on Pinocchio.
 
-from pkmtol.exceptions import PkmtolError
-from pkmtol.kinematics import ClosedChain, Pose
+The pipeline, one module each: :mod:`~pkmtol.mechanism` (limbs from URDF or ``pin.Model``),
+:mod:`~pkmtol.kinematics` (closed chain), :mod:`~pkmtol.error_model` (error parameters and their
+twists), :mod:`~pkmtol.separation` (wrenches, compensatable/uncompensatable split),
+:mod:`~pkmtol.sweep` (over many poses), :mod:`~pkmtol.allocation` (FOSM tolerances),
+:mod:`~pkmtol.montecarlo` (pose search, verification), :mod:`~pkmtol.reliability` (exact R),
+:mod:`~pkmtol.exact_design` and :mod:`~pkmtol.cost` (better designs), :mod:`~pkmtol.design` (the
+main job), :mod:`~pkmtol.report` (tables and files). Everything is SI (m, rad); frames are named
+in every docstring (K: base, K': platform point with base axes).
+
+>>> import pkmtol
+>>> mech = pkmtol.load_mechanism("robots/r2rps_ups")   # doctest: +SKIP
+>>> result = pkmtol.allocate(mech)                       # doctest: +SKIP
+"""
+
+from pkmtol.allocation import fosm_tolerances, sensitivities
+from pkmtol.design import DesignOptions, DesignResult, MethodDesign, Traditional, allocate
+from pkmtol.error_model import ErrorParameter, ParameterSet, default_set, parameter_set
+from pkmtol.error_table import ErrorTable, error_table
+from pkmtol.exceptions import (
+    ConvergenceError,
+    InvalidRequestError,
+    JointLimitError,
+    KinematicsError,
+    MechanismFormatError,
+    MobilityError,
+    OutputError,
+    PkmtolError,
+    PlatformMismatchError,
+    SingularPoseError,
+    UnknownJointError,
+    UnreachableTargetError,
+    URDFError,
+)
+from pkmtol.kinematics import ClosedChain, Pose, perturbed_limb_models
 from pkmtol.mechanism import Limb, Mechanism, load_mechanism
+from pkmtol.montecarlo import FailureStats, PoseSearch, Verification, search_sensitive_pose, verify
+from pkmtol.reliability import exact_reliability, norm_moments, reliability_fosm
+from pkmtol.report import summary_text, to_json, write_outputs
+from pkmtol.separation import Separation, separate
+from pkmtol.sweep import Sweep, sweep
 from pkmtol.taskspace import TaskSpace
 
-__all__ = sorted(
-    [
-        "ClosedChain",
-        "Limb",
-        "Mechanism",
-        "PkmtolError",
-        "Pose",
-        "TaskSpace",
-        "load_mechanism",
-    ]
-)
+__all__ = [
+    "ClosedChain",
+    "ConvergenceError",
+    "DesignOptions",
+    "DesignResult",
+    "ErrorParameter",
+    "ErrorTable",
+    "FailureStats",
+    "InvalidRequestError",
+    "JointLimitError",
+    "KinematicsError",
+    "Limb",
+    "Mechanism",
+    "MechanismFormatError",
+    "MethodDesign",
+    "MobilityError",
+    "OutputError",
+    "ParameterSet",
+    "PkmtolError",
+    "PlatformMismatchError",
+    "Pose",
+    "PoseSearch",
+    "Separation",
+    "SingularPoseError",
+    "Sweep",
+    "TaskSpace",
+    "Traditional",
+    "URDFError",
+    "UnknownJointError",
+    "UnreachableTargetError",
+    "Verification",
+    "allocate",
+    "default_set",
+    "error_table",
+    "exact_reliability",
+    "fosm_tolerances",
+    "load_mechanism",
+    "norm_moments",
+    "parameter_set",
+    "perturbed_limb_models",
+    "reliability_fosm",
+    "search_sensitive_pose",
+    "sensitivities",
+    "separate",
+    "summary_text",
+    "sweep",
+    "to_json",
+    "verify",
+    "write_outputs",
+]
 __version__ = "0.1.0"

@@ -178,6 +178,14 @@ class SingularPoseError(KinematicsError):
         )
 
 
+class MobilityError(KinematicsError):
+    """The actuation and constraint wrenches do not span 6 dimensions, or an actuator cannot act.
+
+    The mechanism is not properly actuated at that pose (wrong actuated joints, or an actuation
+    singularity).
+    """
+
+
 # --- user requests ----------------------------------------------------------------------
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.error_model import ParameterSet, raw_columns_local, to_k_prime
-from pkmtol.exceptions import PkmtolError, SingularPoseError
+from pkmtol.exceptions import MobilityError, SingularPoseError
 from pkmtol.kinematics import ClosedChain, Pose
 from pkmtol.mechanism import Mechanism
 
@@ -86,10 +86,6 @@ class Separation:
     J_total: np.ndarray
     redundancy: int = 0
     incompatible_map: np.ndarray | None = None
-
-
-class MobilityError(PkmtolError):
-    """The wrench system does not span 6 dimensions: the mechanism is not properly actuated."""
 
 
 def null_space(a: np.ndarray) -> np.ndarray:
