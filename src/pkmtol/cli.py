@@ -250,6 +250,11 @@ def _add_allocate(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default: out/<robot name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--view", action="store_true",
+                   help="afterwards, serve the 3D scene in meshcat on 127.0.0.1 until Ctrl-C")
+    p.add_argument("--html", type=Path, default=None,
+                   help="also write the 3D scene as a self-contained HTML page to FILE")
+    p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
     p.set_defaults(run=_run_allocate)
 
 
@@ -275,23 +280,69 @@ def _run_allocate(args: argparse.Namespace) -> int:
     result = allocate(mech, opts)
     print(summary_text(result), end="")
     print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
-    for path in write_outputs(result, out, extra=_figures(result)):
+    for path in write_outputs(result, out):
         print(f"wrote {path}")
+    if not args.no_figures:
+        _write_figures(result, out)
+    _view(result, args.html, args.view)
     return 0
 
 
-def _figures(result: DesignResult) -> dict[str, bytes]:
-    """Figure files (name → bytes) when matplotlib is installed, else none."""
+def _write_figures(result: DesignResult, out: Path) -> None:
+    """Figures next to the tables; without matplotlib, say how to get them and carry on."""
+    from pkmtol.figures import FiguresError, write_figures
+
     try:
-        from pkmtol.figures import render_figures
-    except ImportError:
-        return {}
-    return render_figures(result)
+        for path in write_figures(result, out):
+            print(f"wrote {path}")
+    except FiguresError as err:
+        print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
+
+
+def _view(result: DesignResult, html: Path | None, live: bool) -> None:
+    from pkmtol.viewer import export_html, show
+
+    if html is not None:
+        info = export_html(result, html)
+        print(f"wrote {info['path']} ({info['bytes']} bytes, {info['sphere_count']} error spheres)")
+    if live:
+        show(result)
+
+
+# --- show --------------------------------------------------------------------------------
+
+
+def _add_show(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "show",
+        help="3D scene in meshcat: mechanism at the worst pose, error spheres, verification samples",
+        description="Run the error analysis (no exact-kinematics verification) and show the "
+        "mechanism at its most error-sensitive pose, an error sphere at every task-space grid "
+        "point (radius ∝ σ[Δλ]) and the verification samples, in meshcat on 127.0.0.1. With "
+        "--html, write a self-contained page instead and stop.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument("--html", type=Path, default=None, help="write the scene to FILE and exit")
+    p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.set_defaults(run=_run_show)
+
+
+def _run_show(args: argparse.Namespace) -> int:
+    mech = load_mechanism(args.robot)
+    if args.html is not None:
+        check_output_folder(args.html.parent if str(args.html.parent) else Path("."))
+    opts = DesignOptions(samples=args.samples, exact_samples=0, seed=args.seed, parameter_set=args.pset,
+                         verification_poses=min(2_000, args.samples))
+    result = allocate(mech, opts)
+    _view(result, args.html, args.html is None)
+    return 0
 
 
 # --- the parser --------------------------------------------------------------------------
 
-_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_check, _add_errors, _add_allocate]
+_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_check, _add_errors, _add_allocate, _add_show]
 
 
 def _parser() -> argparse.ArgumentParser:
