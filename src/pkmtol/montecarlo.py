@@ -23,6 +23,7 @@ from scipy import stats
 from tqdm import tqdm
 
 from pkmtol.error_model import ParameterSet
+from pkmtol.exceptions import ConvergenceError
 from pkmtol.kinematics import ClosedChain, perturbed_limb_models
 from pkmtol.mechanism import Mechanism
 from pkmtol.reliability import covariance_eigenvalues, norm_moments
@@ -136,6 +137,9 @@ class Verification:
         max_relative_difference: Largest ``|Δλ_exact − Δλ_linear| / Δλ*`` over the subsample.
         dlam_linear_m: Linear Δλ of every sample [m] (for figures).
         points_m: Shape (samples, 3): the sample points [m].
+        exact_unassembled: Samples of the exact subsample whose perturbed mechanism cannot be
+            closed (an over-constrained mechanism with errors no rigid motion satisfies: assembly
+            errors); they are left out of ``exact``, ``linear_subsample`` and the difference.
     """
 
     distribution: str
@@ -145,6 +149,7 @@ class Verification:
     max_relative_difference: float
     dlam_linear_m: np.ndarray
     points_m: np.ndarray
+    exact_unassembled: int = 0
 
 
 def verify(
@@ -168,7 +173,8 @@ def verify(
         sweep_random: Separations at random task-space points; sample ``s`` uses point
             ``s mod m``.
         columns: Indices (into ``pset``) of the toleranced parameters; the others are zero.
-        sigma: Tolerances of those parameters (SI).
+        sigma: Tolerances of those parameters (SI); a free parameter (``inf``: zero sensitivity
+            at the design point) is held at zero, as in :mod:`pkmtol.exact_design`.
         target_m: Δλ* [m].
         distribution: One of :data:`DISTRIBUTIONS`.
         samples: Number of linear-model samples.
@@ -178,23 +184,30 @@ def verify(
     """
     m = len(sweep_random.poses)
     point_of = np.arange(samples) % m
-    eta = sample_errors(distribution, sigma, samples, rng)
+    eta = sample_errors(distribution, np.where(np.isfinite(sigma), sigma, 0.0), samples, rng)
     Jc = sweep_random.J[:, :, columns]  # (m, 3, k)
     dlam = np.linalg.norm(np.einsum("sij,sj->si", Jc[point_of], eta), axis=1)
     exact = lin_sub = None
     max_diff = float("nan")
+    unassembled = 0
     if exact_samples > 0:
         k = min(exact_samples, samples)
-        dl_exact = np.empty(k)
+        dl_exact = np.full(k, np.nan)
         chain = ClosedChain(mechanism)
         full = np.zeros(len(pset))
         for s in tqdm(range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False):
             full[:] = 0.0
             full[columns] = eta[s]
-            dl_exact[s] = exact_position_error(mechanism, pset, chain, sweep_random, point_of[s], full)
-        exact = failure_stats(dl_exact, target_m)
-        lin_sub = failure_stats(dlam[:k], target_m)
-        max_diff = float(np.max(np.abs(dl_exact - dlam[:k])) / target_m)
+            try:
+                dl_exact[s] = exact_position_error(mechanism, pset, chain, sweep_random, point_of[s], full)
+            except ConvergenceError:
+                pass  # cannot be assembled: counted in exact_unassembled
+        ok = np.isfinite(dl_exact)
+        unassembled = int(k - ok.sum())
+        if ok.any():
+            exact = failure_stats(dl_exact[ok], target_m)
+            lin_sub = failure_stats(dlam[:k][ok], target_m)
+            max_diff = float(np.max(np.abs(dl_exact[ok] - dlam[:k][ok])) / target_m)
     return Verification(
         distribution=distribution,
         linear=failure_stats(dlam, target_m),
@@ -203,6 +216,7 @@ def verify(
         max_relative_difference=max_diff,
         dlam_linear_m=dlam,
         points_m=sweep_random.points_m[point_of],
+        exact_unassembled=unassembled,
     )
 
 

@@ -68,6 +68,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
         d["exact"] = None if v.exact is None else _stats(v.exact)
         d["linear_on_exact_subsample"] = None if v.linear_subsample is None else _stats(v.linear_subsample)
         d["max_exact_linear_difference_over_target"] = _num(v.max_relative_difference)
+        d["exact_unassembled"] = v.exact_unassembled
         ver[name] = d
     return {
         "mechanism": r.mechanism.name,
@@ -215,6 +216,13 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
                           f"{100 * s.failure_fraction:.2f}", f"{100 * s.failure_ci95[0]:.2f}–{100 * s.failure_ci95[1]:.2f}",
                           f"{100 * s.reliability:.2f}"])
     out += [table(vrows), "", f"claimed by FOSM: R = {100 * r.reliability_fosm[col]:.2f} %"]
+    out += [
+        f"exact kinematics ({name}): {v.exact_unassembled} sample(s) could not be assembled (the "
+        "errors include assembly errors no rigid motion satisfies: over-constrained mechanism) "
+        "and are left out of the exact rows"
+        for name, v in r.verification.items()
+        if v.exact_unassembled
+    ]
     out += [h("Claimed vs true reliability of the FOSM designs (R in %)"), table(claim_rows(r)),
             "", "exact: Gaussian errors σ_i, exact distribution of Δλ = ‖J η‖ (no sampling); uniform: "
             "Monte Carlo with 95 % interval; task space: random poses uniform in its volume"]
