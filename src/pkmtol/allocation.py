@@ -53,8 +53,11 @@ def check_design(target_m: float, betas: np.ndarray | list[float] | tuple[float,
     """Raise InvalidRequestError unless ``Δλ* > 0`` and every ``β > 0``."""
     if not np.isfinite(target_m) or target_m <= 0:
         raise InvalidRequestError(
-            f"the required accuracy Δλ* must be positive, got {target_m * 1e3:g} mm; give e.g. --target 0.05mm"
+            f"the required accuracy Δλ* must be positive, got {target_m * 1e3:g} mm; "
+            "give e.g. --target 0.05mm"
         )
     b = np.atleast_1d(np.asarray(betas, dtype=float))
     if b.size == 0 or np.any(~np.isfinite(b)) or np.any(b <= 0):
-        raise InvalidRequestError(f"every reliability index β must be positive, got {b.tolist()}; give e.g. --beta 2")
+        raise InvalidRequestError(
+            f"every reliability index β must be positive, got {b.tolist()}; give e.g. --beta 2"
+        )

@@ -150,9 +150,7 @@ class CheckReport:
         """What stops the mechanism from being used as described (empty when all is well)."""
         out = []
         if self.unreachable:
-            out.append(
-                f"{len(self.unreachable)} of {len(self.points)} task-space points are not reachable"
-            )
+            out.append(f"{len(self.unreachable)} of {len(self.points)} task-space points are not reachable")
         if self.mobility != self.mechanism.n_actuators:
             out.append(
                 f"mobility {self.mobility} differs from the {self.mechanism.n_actuators} "

@@ -68,9 +68,7 @@ def _add_check(subparsers: argparse._SubParsersAction) -> None:
         "the task-space grid (reachability, joint ranges, worst conditioning). Exit code 1 if a "
         "point is unreachable or the mobility differs from the number of actuators.",
     )
-    p.add_argument(
-        "robot", type=Path, help="robot folder holding mechanism.toml (e.g. robots/r2rps_ups)"
-    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml (e.g. robots/r2rps_ups)")
     p.set_defaults(run=_run_check)
 
 
@@ -188,8 +186,13 @@ def _add_errors(subparsers: argparse._SubParsersAction) -> None:
         "error-sensitive pose.",
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
-    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None,
-                   help="parameter set (default: dh when every limb has a D–H table, else urdf)")
+    p.add_argument(
+        "--set",
+        dest="pset",
+        choices=["dh", "urdf"],
+        default=None,
+        help="parameter set (default: dh when every limb has a D–H table, else urdf)",
+    )
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
     p.set_defaults(run=_run_errors)
 
@@ -199,12 +202,15 @@ def _run_errors(args: argparse.Namespace) -> int:
     text = table.to_json()  # rendered before anything is printed or written
     wp = table.worst_point_m * 1e3
     counts = {c: table.classes.count(c) for c in CLASSES}
-    print(f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
-          + ", ".join(f"{counts[c]} {c}" for c in CLASSES))
+    print(
+        f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
+        + ", ".join(f"{counts[c]} {c}" for c in CLASSES)
+    )
     print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
     rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
-    for p, c, s, su in zip(table.pset.parameters, table.classes, table.sensitivity,
-                           table.sensitivity_uncompensated, strict=True):
+    for p, c, s, su in zip(
+        table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True
+    ):
         unit = "µm/µm" if p.unit == "m" else "µm/µrad"
         rows.append([p.name, p.unit, c, f"{s:.4f} {unit}", f"{su:.4f} {unit}"])
     print(text_table(rows))
@@ -227,33 +233,62 @@ def _add_allocate(subparsers: argparse._SubParsersAction) -> None:
         "allocation.json, allocation.csv and allocation.md (and figures) into --out.",
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
-    p.add_argument("--target", default=None,
-                   help="required accuracy Δλ* at P, e.g. 0.05mm or 50um (default: mechanism.toml)")
-    p.add_argument("--beta", type=float, nargs="+", default=None,
-                   help="reliability index of the design (one value) or the whole β series "
-                   "(several; the design β is then --design-beta or the mechanism's)")
+    p.add_argument(
+        "--target",
+        default=None,
+        help="required accuracy Δλ* at P, e.g. 0.05mm or 50um (default: mechanism.toml)",
+    )
+    p.add_argument(
+        "--beta",
+        type=float,
+        nargs="+",
+        default=None,
+        help="reliability index of the design (one value) or the whole β series "
+        "(several; the design β is then --design-beta or the mechanism's)",
+    )
     p.add_argument("--design-beta", type=float, default=None, help="β of the verified design")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
     p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
-    p.add_argument("--exact-samples", type=int, default=1_000,
-                   help="exact-kinematics verification samples per distribution (default 1000)")
-    p.add_argument("--verification-poses", type=int, default=2_000,
-                   help="distinct random task-space poses of the verification (default 2000)")
+    p.add_argument(
+        "--exact-samples",
+        type=int,
+        default=1_000,
+        help="exact-kinematics verification samples per distribution (default 1000)",
+    )
+    p.add_argument(
+        "--verification-poses",
+        type=int,
+        default=2_000,
+        help="distinct random task-space poses of the verification (default 2000)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--method", choices=["fosm", "exact", "cost"], default="fosm",
-                   help="fosm: the paper's Eq. 20 (default); exact: equal-effect shape scaled so "
-                   "that the exact reliability equals Φ(β); cost: cheapest tolerances with exact "
-                   "reliability ≥ Φ(β) at every grid pose")
-    p.add_argument("--criterion", choices=["worst", "every", "average"], default="every",
-                   help="with --method exact: reach Φ(β) at the worst pose, at every grid pose "
-                   "(default) or on average")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output folder (default: out/<robot name>)")
+    p.add_argument(
+        "--method",
+        choices=["fosm", "exact", "cost"],
+        default="fosm",
+        help="fosm: the paper's Eq. 20 (default); exact: equal-effect shape scaled so "
+        "that the exact reliability equals Φ(β); cost: cheapest tolerances with exact "
+        "reliability ≥ Φ(β) at every grid pose",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=["worst", "every", "average"],
+        default="every",
+        help="with --method exact: reach Φ(β) at the worst pose, at every grid pose (default) or on average",
+    )
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.add_argument("--view", action="store_true",
-                   help="afterwards, serve the 3D scene in meshcat on 127.0.0.1 until Ctrl-C")
-    p.add_argument("--html", type=Path, default=None,
-                   help="also write the 3D scene as a self-contained HTML page to FILE")
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="afterwards, serve the 3D scene in meshcat on 127.0.0.1 until Ctrl-C",
+    )
+    p.add_argument(
+        "--html",
+        type=Path,
+        default=None,
+        help="also write the 3D scene as a self-contained HTML page to FILE",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
     p.set_defaults(run=_run_allocate)
 
@@ -269,9 +304,15 @@ def _run_allocate(args: argparse.Namespace) -> int:
     if args.design_beta is not None:
         design_beta = args.design_beta
     opts = DesignOptions(
-        target_m=target, betas=betas, design_beta=design_beta, parameter_set=args.pset,
-        samples=args.samples, verification_poses=args.verification_poses,
-        exact_samples=args.exact_samples, seed=args.seed, method=args.method,
+        target_m=target,
+        betas=betas,
+        design_beta=design_beta,
+        parameter_set=args.pset,
+        samples=args.samples,
+        verification_poses=args.verification_poses,
+        exact_samples=args.exact_samples,
+        seed=args.seed,
+        method=args.method,
         criterion=args.criterion,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
@@ -333,8 +374,13 @@ def _run_show(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
     if args.html is not None:
         check_output_folder(args.html.parent if str(args.html.parent) else Path("."))
-    opts = DesignOptions(samples=args.samples, exact_samples=0, seed=args.seed, parameter_set=args.pset,
-                         verification_poses=min(2_000, args.samples))
+    opts = DesignOptions(
+        samples=args.samples,
+        exact_samples=0,
+        seed=args.seed,
+        parameter_set=args.pset,
+        verification_poses=min(2_000, args.samples),
+    )
     result = allocate(mech, opts)
     _view(result, args.html, args.html is None)
     return 0
@@ -342,7 +388,12 @@ def _run_show(args: argparse.Namespace) -> int:
 
 # --- the parser --------------------------------------------------------------------------
 
-_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_check, _add_errors, _add_allocate, _add_show]
+_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
+    _add_check,
+    _add_errors,
+    _add_allocate,
+    _add_show,
+]
 
 
 def _parser() -> argparse.ArgumentParser:

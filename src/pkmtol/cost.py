@@ -79,7 +79,9 @@ def cost_model(parameters: Sequence[ErrorParameter], overrides: Mapping[str, Any
         )
     unknown_kinds = set(overrides) - {"length", "angle"}
     if unknown_kinds:
-        raise InvalidRequestError(f"[cost] tables must be 'length', 'angle' or 'parameters', got {sorted(unknown_kinds)}")
+        raise InvalidRequestError(
+            f"[cost] tables must be 'length', 'angle' or 'parameters', got {sorted(unknown_kinds)}"
+        )
     cols: dict[str, list[float]] = {f: [] for f in _FIELDS}
     for p in parameters:
         entry = dict(DEFAULT_COST[p.unit])
@@ -89,7 +91,9 @@ def cost_model(parameters: Sequence[ErrorParameter], overrides: Mapping[str, Any
                     raise InvalidRequestError(f"cost field {key!r} unknown; use {', '.join(_FIELDS)}")
                 entry[key] = float(val)
         if entry["B"] <= 0 or entry["k"] <= 0 or not 0 < entry["t_min"] < entry["t_max"]:
-            raise InvalidRequestError(f"cost of {p.name}: need B > 0, k > 0 and 0 < t_min < t_max, got {entry}")
+            raise InvalidRequestError(
+                f"cost of {p.name}: need B > 0, k > 0 and 0 < t_min < t_max, got {entry}"
+            )
         for f in _FIELDS:
             cols[f].append(entry[f])
     scale = np.array([display(1.0, p.unit) for p in parameters])
@@ -184,16 +188,24 @@ def cost_optimal(
     active = [int(np.argmin(r_all(x0)))]
     x = x0
     rounds = 0
-    for rounds in range(1, max_rounds + 1):
+    while rounds < max_rounds:
+        rounds += 1
         act = list(active)
         cons = {
             "type": "ineq",
-            "fun": lambda x, act=act: np.array([_rel_and_grad(J[j], np.exp(x), target_m)[0] - r_star for j in act]),
+            "fun": lambda x, act=act: np.array(
+                [_rel_and_grad(J[j], np.exp(x), target_m)[0] - r_star for j in act]
+            ),
             "jac": lambda x, act=act: np.array([_rel_and_grad(J[j], np.exp(x), target_m)[1] for j in act]),
         }
         res = optimize.minimize(
-            objective, x, jac=True, method="SLSQP", bounds=list(zip(lo, hi, strict=True)),
-            constraints=[cons], options={"maxiter": 300, "ftol": 1e-12},
+            objective,
+            x,
+            jac=True,
+            method="SLSQP",
+            bounds=list(zip(lo, hi, strict=True)),
+            constraints=[cons],
+            options={"maxiter": 300, "ftol": 1e-12},
         )
         x = res.x
         r = r_all(x)
@@ -204,10 +216,14 @@ def cost_optimal(
     # make the result feasible to round-off: shrink uniformly if a constraint is still violated
     r = r_all(x)
     if r.min() < r_star:
+
         def gap(d: float) -> float:
             return float(r_all(np.clip(x - d, lo, hi)).min() - r_star)
+
         d = optimize.brentq(gap, 0.0, 5.0, xtol=1e-13)
         x = np.clip(x - d, lo, hi)
         r = r_all(x)
     sigma = np.exp(x)
-    return CostDesign(sigma=sigma, cost=model.cost(sigma), reliability=r, active_poses=tuple(active), iterations=rounds)
+    return CostDesign(
+        sigma=sigma, cost=model.cost(sigma), reliability=r, active_poses=tuple(active), iterations=rounds
+    )

@@ -15,8 +15,8 @@ import numpy as np
 
 from pkmtol.allocation import check_design, fosm_tolerances, sensitivities
 from pkmtol.cost import cost_model, cost_optimal
-from pkmtol.exact_design import CRITERIA, ClaimRow, claimed_vs_true, scale_design
 from pkmtol.error_model import ParameterSet, default_set, parameter_set
+from pkmtol.exact_design import CRITERIA, ClaimRow, claimed_vs_true, scale_design
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics import ClosedChain
 from pkmtol.mechanism import Mechanism
@@ -229,8 +229,13 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     timings["verification poses"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     claims = claimed_vs_true(
-        grid.J[worst][:, unc], rnd.J[: opt.claim_poses][:, :, unc], tol[unc], betas, target,
-        opt.samples, rng,
+        grid.J[worst][:, unc],
+        rnd.J[: opt.claim_poses][:, :, unc],
+        tol[unc],
+        betas,
+        target,
+        opt.samples,
+        rng,
     )
     timings["claimed vs true reliability"] = time.perf_counter() - t0
 
@@ -238,8 +243,9 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     verified = tol[unc, design_col]
     if opt.method != "fosm":
         t0 = time.perf_counter()
-        method_design = _method_design(mechanism, pset, grid, unc, tol[unc, design_col], target,
-                                       design_beta, worst, opt)
+        method_design = _method_design(
+            mechanism, pset, grid, unc, tol[unc, design_col], target, design_beta, worst, opt
+        )
         verified = method_design.sigma
         timings[f"{opt.method} design"] = time.perf_counter() - t0
 
@@ -247,16 +253,23 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     ver = {}
     for dist in DISTRIBUTIONS:
         ver[dist] = verify(
-            mechanism, pset, rnd, unc, verified, target, dist,
-            opt.samples, opt.exact_samples, rng, progress=opt.progress,
+            mechanism,
+            pset,
+            rnd,
+            unc,
+            verified,
+            target,
+            dist,
+            opt.samples,
+            opt.exact_samples,
+            rng,
+            progress=opt.progress,
         )
     timings["verification"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     trad_cols = np.array([i for i, c in enumerate(classes) if c != "absorbed"], dtype=int)
-    trad_sigma = np.array(
-        [norm_moments(covariance_eigenvalues(Jt[:, trad_cols]))[1] for Jt in grid.J_total]
-    )
+    trad_sigma = np.array([norm_moments(covariance_eigenvalues(Jt[:, trad_cols]))[1] for Jt in grid.J_total])
     trad_worst = int(np.argmax(trad_sigma))
     # evaluated at the same design point as the new method, so the comparison isolates what
     # compensation buys; the traditional model's own most sensitive point is reported beside it

@@ -109,15 +109,17 @@ def dh_error_directions(table: DHTable) -> list[list[tuple[str, int, np.ndarray]
     n1 = table.n_joints + 1
     z = np.array([0.0, 0.0, 1.0])
     x = np.array([1.0, 0.0, 0.0])
-    for j, (theta, d, a, phi) in enumerate(table.links):
+    for j, (_theta, _d, a, phi) in enumerate(table.links):
         tail_after_rz = _dh(0.0, 0.0, a, phi)  # Tz(d) commutes with Rz(θ): both about z
         tail_after_tx = pin.SE3(pin.utils.rotate("x", phi), np.zeros(3))
         extra = pin.SE3.Identity()
         if j == n1 - 1:
             d_e, theta_e = table.end
             extra = pin.SE3(pin.utils.rotate("z", theta_e), np.array([0.0, 0.0, d_e]))
+
         def to_end(tail: pin.SE3, v: np.ndarray, w: np.ndarray, ex: pin.SE3 = extra) -> np.ndarray:
             return (ex.inverse() * tail.inverse()).act(pin.Motion(v, w)).vector
+
         params = [
             ("θ", to_end(tail_after_rz, np.zeros(3), z)),
             ("d", to_end(tail_after_rz, z, np.zeros(3))),
@@ -169,11 +171,14 @@ def to_urdf(
         if not last:
             ET.SubElement(joint, "axis", xyz="0 0 1")
             lo, hi = table.limits[k]
-            ET.SubElement(
-                joint, "limit", lower=_num(lo), upper=_num(hi), effort="1000", velocity="1"
-            )
+            ET.SubElement(joint, "limit", lower=_num(lo), upper=_num(hi), effort="1000", velocity="1")
     ET.indent(robot, "  ")
-    return '<?xml version="1.0"?>\n<!-- generated from mechanism.toml by scripts/dh_to_urdf.py; do not edit -->\n' + ET.tostring(robot, encoding="unicode") + "\n"
+    return (
+        '<?xml version="1.0"?>\n'
+        "<!-- generated from mechanism.toml by scripts/dh_to_urdf.py; do not edit -->\n"
+        + ET.tostring(robot, encoding="unicode")
+        + "\n"
+    )
 
 
 def _num(v: float) -> str:

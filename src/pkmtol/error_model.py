@@ -137,7 +137,7 @@ def _urdf_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
     n_raw = 6 * (nq + 1) + nq
     params: list[ErrorParameter] = []
     origins = list(limb.joint_names) + [limb.attach_name]
-    for k, oname in enumerate(origins):
+    for oname in origins:
         for c, comp in enumerate(COMPONENTS):
             params.append(ErrorParameter(f"{limb.name}.{oname}.{comp}", i, "m" if c < 3 else "rad"))
     for k, jname in enumerate(limb.joint_names):
@@ -177,7 +177,9 @@ def _dh_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
     return params, np.column_stack(cols)
 
 
-def raw_columns_local(limb: Limb, model: pin.Model, data: pin.Data, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
+def raw_columns_local(
+    limb: Limb, model: pin.Model, data: pin.Data, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
     """Raw error columns and joint twists of a limb at ``q``, in the platform frame.
 
     Returns:

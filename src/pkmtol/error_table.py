@@ -55,14 +55,20 @@ class ErrorTable:
                     "sensitivity_uncompensated": float(su),
                 }
                 for p, c, s, su in zip(
-                    self.pset.parameters, self.classes, self.sensitivity, self.sensitivity_uncompensated, strict=True
+                    self.pset.parameters,
+                    self.classes,
+                    self.sensitivity,
+                    self.sensitivity_uncompensated,
+                    strict=True,
                 )
             ],
         }
         return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
 
 
-def error_table(mechanism: Mechanism, kind: str | None = None, chain: ClosedChain | None = None) -> ErrorTable:
+def error_table(
+    mechanism: Mechanism, kind: str | None = None, chain: ClosedChain | None = None
+) -> ErrorTable:
     """Classify every parameter over the task-space grid and take sensitivities at the worst pose."""
     pset = parameter_set(mechanism, kind or default_set(mechanism))
     grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain)

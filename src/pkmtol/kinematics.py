@@ -294,7 +294,12 @@ class ClosedChain:
             limb = self.mechanism.limbs[i]
             j = k - int(self.offsets[i])
             raise JointLimitError(
-                target, limb.name, limb.joint_names[j], float(q[k]), float(self.lower[k]), float(self.upper[k])
+                target,
+                limb.name,
+                limb.joint_names[j],
+                float(q[k]),
+                float(self.lower[k]),
+                float(self.upper[k]),
             )
 
     def _worst_limb(self, q: np.ndarray) -> tuple[str, str, float, float]:
@@ -306,7 +311,12 @@ class ClosedChain:
             size = float(np.linalg.norm(err))
             if size > best:
                 best = size
-                worst = (lb.name, self.mechanism.limbs[0].name, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])))
+                worst = (
+                    lb.name,
+                    self.mechanism.limbs[0].name,
+                    float(np.linalg.norm(err[:3])),
+                    float(np.linalg.norm(err[3:])),
+                )
         return worst
 
 

@@ -209,14 +209,15 @@ def _make_limb(
         raise URDFError(name, path, "the limb has no moving joint")
     if not model.existFrame(platform_link):
         raise URDFError(
-            name, path, f"no platform link '{platform_link}' (links: "
-            + ", ".join(f.name for f in model.frames if f.type == pin.FrameType.BODY) + ")"
+            name,
+            path,
+            f"no platform link '{platform_link}' (links: "
+            + ", ".join(f.name for f in model.frames if f.type == pin.FrameType.BODY)
+            + ")",
         )
     fid = model.getFrameId(platform_link)
     if model.frames[fid].parentJoint != model.njoints - 1:
-        raise URDFError(
-            name, path, f"platform link '{platform_link}' is not at the end of the chain"
-        )
+        raise URDFError(name, path, f"platform link '{platform_link}' is not at the end of the chain")
     joint_names = list(model.names[1:])
     act: list[int] = []
     for a in actuated:
@@ -282,9 +283,13 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     folder = Path(folder)
     path = folder / "mechanism.toml"
     if not folder.is_dir():
-        raise MechanismFormatError(path, "-", f"'{folder}' is not a folder; give a robot folder such as robots/r2rps_ups")
+        raise MechanismFormatError(
+            path, "-", f"'{folder}' is not a folder; give a robot folder such as robots/r2rps_ups"
+        )
     if not path.is_file():
-        raise MechanismFormatError(path, "-", "file not found; a robot folder needs a mechanism.toml (see docs/mechanism-format.md)")
+        raise MechanismFormatError(
+            path, "-", "file not found; a robot folder needs a mechanism.toml (see docs/mechanism-format.md)"
+        )
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as err:
@@ -304,10 +309,16 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         r.fail("design.target", str(err))
     betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
-    limbs_doc = r.get("limbs", list)
-    if len(limbs_doc) < 2:
-        r.fail("limbs", "a parallel mechanism needs at least two [[limbs]]")
     limbs = []
+    if "closed_loop" in doc:
+        # one URDF tree with closure frame pairs (docs/closed-loop.md); local import: that
+        # module builds on this one
+        from pkmtol.closed_loop import limbs_from_toml
+
+        limbs = limbs_from_toml(folder, r)
+    limbs_doc = r.get("limbs", list) if "closed_loop" not in doc else []
+    if "closed_loop" not in doc and len(limbs_doc) < 2:
+        r.fail("limbs", "a parallel mechanism needs at least two [[limbs]]")
     for i, ld in enumerate(limbs_doc):
         lr = _Reader(path, ld, prefix=f"limbs[{i}].")
         lname = lr.get("name", str)
@@ -340,7 +351,8 @@ def check_root_links(mech: Mechanism) -> None:
     for lb, root in zip(mech.limbs[1:], roots[1:], strict=True):
         if root != roots[0]:
             raise URDFError(
-                lb.name, lb.urdf_path,
+                lb.name,
+                lb.urdf_path,
                 f"its root link is '{root}' but limb '{mech.limbs[0].name}' starts at '{roots[0]}'; "
                 "every limb must start from the same base link (frame K)",
             )
@@ -422,7 +434,13 @@ def _read_dh(r: _Reader) -> DHTable:
             limits[k] = np.radians(limits[k])
     names = tuple(r.get("dh.joint_names", list))
     try:
-        return DHTable(links=links, end=(float(end[0]), math.radians(end[1])), joint_types=types, joint_names=names, limits=limits)  # type: ignore[arg-type]
+        return DHTable(
+            links=links,
+            end=(float(end[0]), math.radians(end[1])),
+            joint_types=types,
+            joint_names=names,
+            limits=limits,
+        )  # type: ignore[arg-type]
     except ValueError as err:
         r.fail("dh", str(err))
         raise

@@ -148,16 +148,40 @@ def exact_reliability_imhof(eigenvalues: np.ndarray, threshold_m: float) -> floa
     a = 50.0
     head, _ = integrate.quad(full, 0.0, a, limit=2000, epsabs=1e-13, epsrel=1e-12)
     # tail: sin(φ − u/2) = sin φ cos(u/2) − cos φ sin(u/2)
-    t1, _ = integrate.quad(lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)), 0.0, np.inf,
-                           weight="cos", wvar=0.5, limlst=200)
-    t2, _ = integrate.quad(lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)), 0.0, np.inf,
-                           weight="sin", wvar=0.5, limlst=200)
+    t1, _ = integrate.quad(
+        lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)),
+        0.0,
+        np.inf,
+        weight="cos",
+        wvar=0.5,
+        limlst=200,
+    )
+    t2, _ = integrate.quad(
+        lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)),
+        0.0,
+        np.inf,
+        weight="sin",
+        wvar=0.5,
+        limlst=200,
+    )
     # shift: cos(0.5 (u + a)) and sin(0.5 (u + a)) expanded around the shifted variable
     ca, sa = math.cos(0.5 * a), math.sin(0.5 * a)
-    t3, _ = integrate.quad(lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)), 0.0, np.inf,
-                           weight="sin", wvar=0.5, limlst=200)
-    t4, _ = integrate.quad(lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)), 0.0, np.inf,
-                           weight="cos", wvar=0.5, limlst=200)
+    t3, _ = integrate.quad(
+        lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)),
+        0.0,
+        np.inf,
+        weight="sin",
+        wvar=0.5,
+        limlst=200,
+    )
+    t4, _ = integrate.quad(
+        lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)),
+        0.0,
+        np.inf,
+        weight="cos",
+        wvar=0.5,
+        limlst=200,
+    )
     # ∫ sinφ cos(½(u+a)) − cosφ sin(½(u+a)) = ca·t1 − sa·t3 − (sa·t4 + ca·t2)
     tail = ca * t1 - sa * t3 - (sa * t4 + ca * t2)
     p_exceed = 0.5 + (head + tail) / math.pi

@@ -15,8 +15,9 @@ Reciprocal product = ``wrench · twist`` (power; twist ``[v; ω]``, wrench ``[f;
 Projecting the limb's twist equation ``$_t = T_i q̇ + E_i η_i`` on the wrenches removes the
 unknown passive motions: ``W_aᵀ $_t = Λ_a ξ_a + G_a η_a`` (7) and ``W_cᵀ $_t = G_c η_c`` (8). With
 ``W = [W_a W_c]`` square and invertible, the pose error twist is
-``$_t = W⁻ᵀ [Λ_a ξ_a + G_a η_a; G_c η_c]`` (over-constrained mechanisms, ``W`` wider than 6 and of
-rank 6: the least-squares solution, the rest reported as an assembly error); the actuator correction of Eq. 25,
+``$_t = W⁻ᵀ [Λ_a ξ_a + G_a η_a; G_c η_c]`` (over-constrained mechanisms, ``W`` wider than 6 and
+of rank 6: the least-squares solution, the rest reported as an assembly error); the actuator
+correction of Eq. 25,
 ``ξ_a ← ξ_a − Λ_a⁻¹ (Λ_a ξ_a + G_a η_a)``, leaves the uncompensatable twist ``W⁻ᵀ [0; G_c η_c]``.
 """
 
