@@ -71,9 +71,7 @@ def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator)
     )
 
 
-def sample_errors(
-    distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator
-) -> np.ndarray:
+def sample_errors(distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
     """Error samples of shape (count, n) for per-parameter tolerances ``sigma`` (n,)."""
     sigma = np.asarray(sigma, dtype=float)
     if distribution == "uniform_sigma":
@@ -195,7 +193,9 @@ def verify(
         dl_exact = np.full(k, np.nan)
         chain = ClosedChain(mechanism)
         full = np.zeros(len(pset))
-        for s in tqdm(range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False):
+        for s in tqdm(
+            range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False
+        ):
             full[:] = 0.0
             full[columns] = eta[s]
             try:

@@ -103,7 +103,9 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
             }
             for c in r.claims
         ],
-        "method_design": None if r.method_design is None else {
+        "method_design": None
+        if r.method_design is None
+        else {
             "method": r.method_design.method,
             "criterion": r.method_design.criterion,
             "target_reliability": r.method_design.target_reliability,
@@ -160,15 +162,27 @@ def comparison_rows(r: DesignResult) -> list[list[str]]:
         new = r.tolerances[i, col] if r.classes[i] == "uncompensatable" else float("inf")
         ratio = _ratio(t, new) if math.isfinite(new) else float("nan")
         rows.append(
-            [p.name, r.classes[i], display_unit(p.unit), _fmt_tol(new, p.unit) if r.classes[i] == "uncompensatable" else "compensated",
-             _fmt_tol(t, p.unit), "-" if math.isnan(ratio) else f"{ratio:.3f}"]
+            [
+                p.name,
+                r.classes[i],
+                display_unit(p.unit),
+                _fmt_tol(new, p.unit) if r.classes[i] == "uncompensatable" else "compensated",
+                _fmt_tol(t, p.unit),
+                "-" if math.isnan(ratio) else f"{ratio:.3f}",
+            ]
         )
     return rows
 
 
 def text_table(rows: list[list[str]]) -> str:
+    """Rows (header first) as an aligned plain-text table with a rule under the header."""
     widths = [max(len(row[c]) for row in rows) for c in range(len(rows[0]))]
-    lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w) for c, (cell, w) in enumerate(zip(row, widths, strict=True))) for row in rows]
+    lines = [
+        "  ".join(
+            cell.rjust(w) if c else cell.ljust(w) for c, (cell, w) in enumerate(zip(row, widths, strict=True))
+        )
+        for row in rows
+    ]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
 
@@ -192,12 +206,14 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at P; parameter set '{r.pset.kind}' "
         f"({len(r.pset)} parameters: {counts['uncompensatable']} uncompensatable, "
         f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
-        f"most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm, "
+        "most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): "
+        f"P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm, "
         f"σ = {r.search.sigma_analytic_m[r.worst_index]:.5g} m analytic, "
         f"{r.search.sigma_sampled_m[r.worst_index]:.5g} m from {r.search.samples} samples "
         f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
         h("Tolerances of the uncompensatable errors (FOSM, paper Table III)"),
-        "R = Φ(β): " + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
+        "R = Φ(β): "
+        + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
         "",
         table(table_rows(r)),
         h(f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"),
@@ -207,14 +223,29 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         if r.method_design is None
         else f"Verification of the '{r.method_design.method}' design (Δλ* = {r.target_m * 1e6:g} µm)"
     )
-    vrows = [["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]]
+    vrows = [
+        ["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]
+    ]
     for name, v in r.verification.items():
-        for label, s in (("linear", v.linear), ("exact", v.exact), ("linear (same subsample)", v.linear_subsample)):
+        for label, s in (
+            ("linear", v.linear),
+            ("exact", v.exact),
+            ("linear (same subsample)", v.linear_subsample),
+        ):
             if s is None:
                 continue
-            vrows.append([name, label, str(s.samples), f"{s.mean_m * 1e6:.3f}", f"{s.std_m * 1e6:.3f}",
-                          f"{100 * s.failure_fraction:.2f}", f"{100 * s.failure_ci95[0]:.2f}–{100 * s.failure_ci95[1]:.2f}",
-                          f"{100 * s.reliability:.2f}"])
+            vrows.append(
+                [
+                    name,
+                    label,
+                    str(s.samples),
+                    f"{s.mean_m * 1e6:.3f}",
+                    f"{s.std_m * 1e6:.3f}",
+                    f"{100 * s.failure_fraction:.2f}",
+                    f"{100 * s.failure_ci95[0]:.2f}–{100 * s.failure_ci95[1]:.2f}",
+                    f"{100 * s.reliability:.2f}",
+                ]
+            )
     out += [table(vrows), "", f"claimed by FOSM: R = {100 * r.reliability_fosm[col]:.2f} %"]
     out += [
         f"exact kinematics ({name}): {v.exact_unassembled} sample(s) could not be assembled (the "
@@ -223,11 +254,20 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         for name, v in r.verification.items()
         if v.exact_unassembled
     ]
-    out += [h("Claimed vs true reliability of the FOSM designs (R in %)"), table(claim_rows(r)),
-            "", "exact: Gaussian errors σ_i, exact distribution of Δλ = ‖J η‖ (no sampling); uniform: "
-            "Monte Carlo with 95 % interval; task space: random poses uniform in its volume"]
+    out += [
+        h("Claimed vs true reliability of the FOSM designs (R in %)"),
+        table(claim_rows(r)),
+        "",
+        "exact: Gaussian errors σ_i, exact distribution of Δλ = ‖J η‖ (no sampling); uniform: "
+        "Monte Carlo with 95 % interval; task space: random poses uniform in its volume",
+    ]
     if r.method_design is not None:
-        out += [h(f"Design by the '{r.method_design.method}' method"), *method_lines(r), "", table(method_rows(r))]
+        out += [
+            h(f"Design by the '{r.method_design.method}' method"),
+            *method_lines(r),
+            "",
+            table(method_rows(r)),
+        ]
     t = r.traditional
     fin = np.isfinite(t.tolerance)
     shared = [
@@ -239,8 +279,9 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
     factor = np.median([b / a for a, b in shared]) if shared else float("nan")
     out += [
         h("Traditional method (all errors, no compensation), same Δλ*, β and design point"),
-        f"{len(t.columns)} parameters allocated ({int(fin.sum())} finite, {int((~fin).sum())} free '+inf') vs "
-        f"{len(r.uncompensatable)} by the new method; {tighter} of {len(shared)} shared tolerances are tighter "
+        f"{len(t.columns)} parameters allocated ({int(fin.sum())} finite, "
+        f"{int((~fin).sum())} free '+inf') vs {len(r.uncompensatable)} by the new method; "
+        f"{tighter} of {len(shared)} shared tolerances are tighter "
         f"(median factor {factor:.3f}); traditional's own most sensitive point: "
         "(" + ", ".join(f"{x * 1e3:.1f}" for x in r.grid.points_m[t.worst_index]) + ") mm",
         "",
@@ -251,15 +292,35 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
 
 def claim_rows(r: DesignResult) -> list[list[str]]:
     """Rows of the claimed-vs-true reliability table."""
+
     def ci(c: tuple[float, float, float]) -> str:
         return f"{100 * c[0]:.2f} ({100 * c[1]:.2f}–{100 * c[2]:.2f})"
-    rows = [["β", "claimed Φ(β)", "exact, worst pose", "exact, task space mean (min)",
-             "uniform ±σ, worst", "uniform ±√3σ, worst", "uniform ±σ, task space", "uniform ±√3σ, task space"]]
+
+    rows = [
+        [
+            "β",
+            "claimed Φ(β)",
+            "exact, worst pose",
+            "exact, task space mean (min)",
+            "uniform ±σ, worst",
+            "uniform ±√3σ, worst",
+            "uniform ±σ, task space",
+            "uniform ±√3σ, task space",
+        ]
+    ]
     for c in r.claims:
-        rows.append([f"{c.beta:g}", f"{100 * c.claimed:.2f}", f"{100 * c.exact_worst:.4f}",
-                     f"{100 * c.exact_task_space:.4f} ({100 * c.exact_task_space_min:.4f})",
-                     ci(c.uniform_sigma_worst), ci(c.uniform_sqrt3_worst),
-                     ci(c.uniform_sigma_task_space), ci(c.uniform_sqrt3_task_space)])
+        rows.append(
+            [
+                f"{c.beta:g}",
+                f"{100 * c.claimed:.2f}",
+                f"{100 * c.exact_worst:.4f}",
+                f"{100 * c.exact_task_space:.4f} ({100 * c.exact_task_space_min:.4f})",
+                ci(c.uniform_sigma_worst),
+                ci(c.uniform_sqrt3_worst),
+                ci(c.uniform_sigma_task_space),
+                ci(c.uniform_sqrt3_task_space),
+            ]
+        )
     return rows
 
 
@@ -281,11 +342,26 @@ def method_rows(r: DesignResult) -> list[list[str]]:
     """Per-parameter tolerances of the exact/cost design beside the equal-effect ones."""
     m = r.method_design
     assert m is not None
-    rows = [["parameter", "unit", f"{m.method} design", "equal effect, same true R", "FOSM β=" + f"{r.design_beta:g}"]]
+    rows = [
+        [
+            "parameter",
+            "unit",
+            f"{m.method} design",
+            "equal effect, same true R",
+            "FOSM β=" + f"{r.design_beta:g}",
+        ]
+    ]
     for k, i in enumerate(r.uncompensatable):
         p = r.pset.parameters[i]
-        rows.append([p.name, display_unit(p.unit), _fmt_tol(m.sigma[k], p.unit),
-                     _fmt_tol(m.reference_sigma[k], p.unit), _fmt_tol(r.tolerances[i, r.design_column], p.unit)])
+        rows.append(
+            [
+                p.name,
+                display_unit(p.unit),
+                _fmt_tol(m.sigma[k], p.unit),
+                _fmt_tol(m.reference_sigma[k], p.unit),
+                _fmt_tol(r.tolerances[i, r.design_column], p.unit),
+            ]
+        )
     return rows
 
 
@@ -295,14 +371,23 @@ def to_csv(r: DesignResult) -> str:
     w = csv.writer(buf, lineterminator="\n")
     col = r.design_column
     trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
-    w.writerow(["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
-               + [f"tolerance_beta_{b:g}" for b in r.betas] + [f"traditional_tolerance_beta_{r.design_beta:g}"])
+    w.writerow(
+        ["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
+        + [f"tolerance_beta_{b:g}" for b in r.betas]
+        + [f"traditional_tolerance_beta_{r.design_beta:g}"]
+    )
     for i, p in enumerate(r.pset.parameters):
         u = p.unit
-        tols = ["" if np.isnan(t) else ("inf" if not math.isfinite(t) else f"{display(t, u):.6g}") for t in r.tolerances[i]]
+        tols = [
+            "" if np.isnan(t) else ("inf" if not math.isfinite(t) else f"{display(t, u):.6g}")
+            for t in r.tolerances[i]
+        ]
         tr = trad.get(i)
-        w.writerow([p.name, display_unit(u), r.classes[i], f"{r.sensitivity[i]:.6g}"] + tols
-                   + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u):.6g}")])
+        w.writerow(
+            [p.name, display_unit(u), r.classes[i], f"{r.sensitivity[i]:.6g}"]
+            + tols
+            + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u):.6g}")]
+        )
     del col
     return buf.getvalue()
 
