@@ -48,6 +48,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
     col = r.design_column
     trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
     params = []
+    assembly = r.grid.incompatible()
     for i, p in enumerate(r.pset.parameters):
         tol = r.tolerances[i]
         params.append(
@@ -60,6 +61,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
                 "sensitivity_uncompensated": float(r.sensitivity_uncompensated[i]),
                 "tolerance": None if np.isnan(tol[0]) else [_num(t) for t in tol],
                 "traditional_tolerance": _num(trad[i]) if i in trad else None,
+                "assembly_error": bool(assembly[i]),
             }
         )
     ver = {}
@@ -78,6 +80,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
         "reliability": [float(x) for x in r.reliability_fosm],
         "design_beta": r.design_beta,
         "worst_point_m": r.worst_point_m.tolist(),
+        "redundancy": r.grid.redundancy,
         "n_allocated": int(np.sum(np.isfinite(r.tolerances[r.uncompensatable, col]))),
         "parameters": params,
         "sensitive_pose_search": {
@@ -193,6 +196,19 @@ def _md_table(rows: list[list[str]]) -> str:
     return "\n".join(out)
 
 
+def _overconstraint_lines(r: DesignResult) -> list[str]:
+    """The redundancy of an over-constrained mechanism and its assembly-error parameters."""
+    if not r.grid.redundancy:
+        return []
+    names = [r.pset.names[i] for i in np.flatnonzero(r.grid.incompatible())]
+    return [
+        f"over-constrained: redundancy {r.grid.redundancy} (the actuation and constraint wrenches "
+        f"exceed their rank 6 by {r.grid.redundancy}); pose errors are least-squares solutions, and "
+        f"{len(names)} parameters have an incompatible part, an assembly error no rigid motion "
+        "satisfies: " + ", ".join(names)
+    ]
+
+
 def summary_text(r: DesignResult, markdown: bool = False) -> str:
     """The whole report as terminal text or Markdown."""
     table = _md_table if markdown else text_table
@@ -206,6 +222,7 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at P; parameter set '{r.pset.kind}' "
         f"({len(r.pset)} parameters: {counts['uncompensatable']} uncompensatable, "
         f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
+        *_overconstraint_lines(r),
         "most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): "
         f"P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm, "
         f"σ = {r.search.sigma_analytic_m[r.worst_index]:.5g} m analytic, "

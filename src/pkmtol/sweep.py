@@ -38,6 +38,25 @@ class Sweep:
     J_total: np.ndarray
     W_condition: np.ndarray
 
+    @property
+    def redundancy(self) -> int:
+        """Largest number of linearly dependent wrenches over the points (0: not over-constrained)."""
+        return max((s.redundancy for s in self.separations), default=0)
+
+    def incompatible(self) -> np.ndarray:
+        """Per parameter: whether it has an incompatible part (an assembly error) at some point.
+
+        Only over-constrained mechanisms have one: the part of the parameter's wrench rows that no
+        rigid platform motion satisfies (``Separation.incompatible_map``), relative as in
+        :meth:`classify`.
+        """
+        out = np.zeros(self.J.shape[2], dtype=bool)
+        for s in self.separations:
+            if s.redundancy and s.incompatible_map is not None:
+                scale = np.maximum(1.0, np.linalg.norm(s.error_columns, axis=0))
+                out |= np.abs(s.incompatible_map).max(axis=0) / scale > ZERO_TOLERANCE
+        return out
+
     def classify(self) -> list[str]:
         """Class of each parameter: ``absorbed``, ``compensatable`` or ``uncompensatable``.
 
