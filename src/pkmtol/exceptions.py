@@ -203,3 +203,48 @@ class OutputError(PkmtolError):
 
 def _fmt_mm(p_m: np.ndarray) -> str:
     return "(" + ", ".join(f"{1e3 * x:.3f}" for x in p_m) + ") mm"
+
+
+# --- closed-loop URDF import --------------------------------------------------------------------
+
+
+class ClosedLoopError(PkmtolError):
+    """A closed-loop URDF tree and its sidecar do not describe a mechanism pkmtol can cut into limbs.
+
+    Attributes:
+        path: The file at fault (the URDF or the sidecar).
+        culprit: Name of the offending frame, joint, link or key.
+    """
+
+    def __init__(self, path: Path | str, culprit: str, problem: str) -> None:
+        self.path = Path(path)
+        self.culprit = culprit
+        super().__init__(f"{self.path}: '{culprit}': {problem}")
+
+
+class ClosureFrameError(ClosedLoopError):
+    """A closure frame is missing, has no partner, or is not listed in the sidecar."""
+
+
+class UnknownMotorError(ClosedLoopError):
+    """A motor joint listed in the sidecar (``name_mot``) is not a joint of the tree.
+
+    Attributes:
+        available: The joint names the tree does have.
+    """
+
+    def __init__(self, path: Path | str, joint: str, available: Sequence[str]) -> None:
+        self.available = tuple(available)
+        super().__init__(
+            path,
+            joint,
+            "motor joint listed in name_mot is not a joint of the tree "
+            f"(joints: {', '.join(self.available)}); fix the name in the sidecar",
+        )
+
+
+class NoLoopError(ClosedLoopError):
+    """The tree has no closure frames and the sidecar lists no loop: nothing to close."""
+
+    def __init__(self, path: Path | str, problem: str) -> None:
+        super().__init__(path, "closed_loop", problem)
