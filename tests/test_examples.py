@@ -1,0 +1,150 @@
+"""The example scripts in scripts/ run (as a user would, in a subprocess, with small sample
+counts) and print the numbers the library computes."""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import re
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pkmtol import error_table, fosm_tolerances, load_mechanism
+from pkmtol.mechanism import check_home
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPTS = REPO / "scripts"
+SEED = REPO / "robots" / "r2rps_ups"
+
+
+def run(script: str, *args: str) -> str:
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPTS / script), *args], capture_output=True, text=True, cwd=REPO, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def table_body(text: str, header_start: str) -> list[list[str]]:
+    """Rows (split on 2+ spaces) of the text table whose header starts with ``header_start``."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(header_start))
+    rows = []
+    for line in lines[start + 2 :]:
+        if not line.strip():
+            break
+        rows.append(re.split(r"\s{2,}", line.strip()))
+    return rows
+
+
+# --- your own pin.Model limbs ------------------------------------------------------------------
+
+
+def test_own_models_build_a_closed_mechanism():
+    mech = load_script("example_own_models").build_mechanism()
+    check_home(mech)  # every platform frame at the same pose at home
+    assert [lb.name for lb in mech.limbs] == ["column", "leg1", "leg2", "leg3"]
+    assert [lb.nq for lb in mech.limbs] == [3, 6, 6, 6]
+    assert [len(lb.actuated) for lb in mech.limbs] == [0, 1, 1, 1]
+    for lb in mech.limbs:  # O' at (0, 0, 0.8) m with the axes of K
+        data = lb.model.createData()
+        pin.framesForwardKinematics(lb.model, data, lb.home)
+        np.testing.assert_allclose(data.oMf[lb.platform_frame].translation, [0, 0, 0.8], atol=1e-12)
+        np.testing.assert_allclose(data.oMf[lb.platform_frame].rotation, np.eye(3), atol=1e-12)
+
+
+def test_own_models_print_the_tolerance_table():
+    out = run("example_own_models.py", "--samples", "300", "--exact-samples", "4")
+    assert "171 error parameters (urdf set), 18 uncompensatable" in out
+    rows = table_body(out, "No.")
+    assert len(rows) == 18
+    # only the passive UP column is constrained, so only its errors are uncompensatable
+    assert all(r[1].startswith("column.") for r in rows)
+    betas = np.array([0.5, 1.0, 1.5, 2.0, 2.5, 3.0])
+    for r in rows:  # σ_i · β is constant along each row (printed to 4 decimals)
+        tol = np.array([float(c.lstrip("±")) for c in r[4:]])
+        expected = tol[1] / betas  # from the β = 1 column
+        assert np.all(np.abs(tol - expected) <= 5e-5 * (1 + 1 / betas) + 1e-12), r
+
+
+# --- the wrist-offset sweep ---------------------------------------------------------------------
+
+
+def test_sweep_wrist_offset_table():
+    out = run("sweep_wrist_offset.py", "--l", "0.1", "0.3", "0.5", "--reference", "0.3")
+    summary = table_body(out, "l [mm]")
+    assert [r[0] for r in summary] == ["100", "300", "500"]
+    # the unit-error σ[Δλ] at the worst point changes with l (seed robot: 0.6529 at l = 0.1 m,
+    # 0.5407 m per unit at 0.3 m)
+    assert float(summary[0][2]) > float(summary[1][2]) > 0
+    assert summary[2][:2] == ["500", "task space unreachable"] and "limb1_p3" in summary[2][2]
+    # the l = 0.3 m column is the seed robot's own design at β = 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = error_table(load_mechanism(SEED), "dh")
+    unc = [i for i, c in enumerate(table.classes) if c == "uncompensatable"]
+    expected = fosm_tolerances(table.sensitivity[unc], 5e-5, np.array([2.0]))[:, 0] * 1e3
+    rows = table_body(out, "No.")
+    assert [r[1] for r in rows] == [table.pset.names[i] for i in unc]
+    printed = np.array([float(r[4].lstrip("±")) for r in rows])
+    np.testing.assert_allclose(printed, expected, rtol=0, atol=5e-5)
+    assert all(r[5] == "-" for r in rows)
+    p = table.worst_point_m * 1e3
+    assert summary[1][1] == f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f})"
+
+
+# --- your own MeshcatVisualizer -----------------------------------------------------------------
+
+
+def _meshcat_commands(html: str) -> list[dict]:
+    umsgpack = pytest.importorskip("umsgpack")
+    blobs = re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)
+    return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_meshcat_example_draws_into_your_own_visualizer(tmp_path):
+    pytest.importorskip("meshcat")
+    html = tmp_path / "scene.html"
+    out = run("example_meshcat.py", "--out", str(html), "--samples", "300")
+    m = re.search(r"(\d+) error spheres.*meshcat server (\d+) stopped", out, re.S)
+    assert m is not None and m.group(1) == "147"
+    assert not _alive(int(m.group(2)))
+    commands = _meshcat_commands(html.read_text(encoding="utf-8"))
+    paths = [c.get("path", "") for c in commands]
+    for limb in ("limb1", "limb2", "limb3", "limb4"):
+        assert any(p.startswith(f"/meshcat/my_robot/{limb}/visuals/") for p in paths)
+    assert not any(p.startswith("/meshcat/pkmtol/robot") for p in paths)  # the robot is yours
+    spheres = {p for p in paths if re.fullmatch(r"/meshcat/pkmtol/error_spheres/\d+", p)}
+    assert len(spheres) == 147
+    # every limb's platform visual is drawn at the same (closed) pose
+    platforms = [
+        np.array(c["matrix"], dtype=float).reshape(4, 4)
+        for c in commands
+        if c.get("type") == "set_transform"
+        and re.fullmatch(r"/meshcat/my_robot/limb\d/visuals/platform_0", c["path"])
+    ]
+    assert len(platforms) == 4
+    for t in platforms[1:]:
+        np.testing.assert_allclose(t, platforms[0], atol=1e-9)
