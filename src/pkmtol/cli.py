@@ -23,7 +23,14 @@ from pkmtol.design import DesignOptions, DesignResult, allocate
 from pkmtol.error_table import error_table
 from pkmtol.exceptions import PkmtolError
 from pkmtol.mechanism import load_mechanism
-from pkmtol.report import check_output_folder, summary_text, text_table, write_atomic, write_outputs
+from pkmtol.report import (
+    check_output_folder,
+    overconstraint_lines,
+    summary_text,
+    text_table,
+    write_atomic,
+    write_outputs,
+)
 from pkmtol.sweep import CLASSES
 from pkmtol.units import parse_length
 
@@ -207,6 +214,8 @@ def _run_errors(args: argparse.Namespace) -> int:
         + ", ".join(f"{counts[c]} {c}" for c in CLASSES)
     )
     print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
+    for line in overconstraint_lines(table.grid, table.pset.names):
+        print(line)
     rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True

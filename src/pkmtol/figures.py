@@ -205,7 +205,8 @@ def tolerance_figure(result: DesignResult) -> Any:
     ax.set_xlim(-0.7, len(unc) - 0.3)
     ax.set_ylabel("tolerance σ_i  [µm or µrad]")
     n_comp = sum(1 for c in result.classes if c == "compensatable")
-    ratio = new / trad
+    with np.errstate(invalid="ignore", divide="ignore"):  # free (inf) tolerances give no ratio
+        ratio = new / trad
     ok = np.isfinite(ratio)
     gain = f"; new/traditional: median ×{np.median(ratio[ok]):.2f}" if ok.any() else ""
     ax.set_title(

@@ -20,6 +20,7 @@ import numpy as np
 
 from pkmtol.design import DesignResult
 from pkmtol.exceptions import OutputError
+from pkmtol.sweep import Sweep
 from pkmtol.units import display, display_unit
 
 
@@ -197,13 +198,17 @@ def _md_table(rows: list[list[str]]) -> str:
 
 
 def _overconstraint_lines(r: DesignResult) -> list[str]:
+    return overconstraint_lines(r.grid, r.pset.names)
+
+
+def overconstraint_lines(grid: Sweep, names_all: list[str]) -> list[str]:
     """The redundancy of an over-constrained mechanism and its assembly-error parameters."""
-    if not r.grid.redundancy:
+    if not grid.redundancy:
         return []
-    names = [r.pset.names[i] for i in np.flatnonzero(r.grid.incompatible())]
+    names = [names_all[i] for i in np.flatnonzero(grid.incompatible())]
     return [
-        f"over-constrained: redundancy {r.grid.redundancy} (the actuation and constraint wrenches "
-        f"exceed their rank 6 by {r.grid.redundancy}); pose errors are least-squares solutions, and "
+        f"over-constrained: redundancy {grid.redundancy} (the actuation and constraint wrenches "
+        f"exceed their rank 6 by {grid.redundancy}); pose errors are least-squares solutions, and "
         f"{len(names)} parameters have an incompatible part, an assembly error no rigid motion "
         "satisfies: " + ", ".join(names)
     ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,12 +51,7 @@ class Sweep:
         rigid platform motion satisfies (``Separation.incompatible_map``), relative as in
         :meth:`classify`.
         """
-        out = np.zeros(self.J.shape[2], dtype=bool)
-        for s in self.separations:
-            if s.redundancy and s.incompatible_map is not None:
-                scale = np.maximum(1.0, np.linalg.norm(s.error_columns, axis=0))
-                out |= np.abs(s.incompatible_map).max(axis=0) / scale > ZERO_TOLERANCE
-        return out
+        return self._max_relative(lambda s: s.incompatible_map if s.redundancy else None) > ZERO_TOLERANCE
 
     def classify(self) -> list[str]:
         """Class of each parameter: ``absorbed``, ``compensatable`` or ``uncompensatable``.
@@ -64,18 +60,23 @@ class Sweep:
         point. Compensatable: otherwise, an actuation wrench sees it (``G_a`` or ``Λ_a``).
         Absorbed: neither, at every point — its error twist lies in its limb's passive-joint span.
         """
-        ya = np.zeros(self.J.shape[2])
-        yc = np.zeros_like(ya)
-        for s in self.separations:
-            scale = np.maximum(1.0, np.linalg.norm(s.error_columns, axis=0))
-            if s.Y_a.size:
-                ya = np.maximum(ya, np.abs(s.Y_a).max(axis=0) / scale)
-            if s.Y_c.size:
-                yc = np.maximum(yc, np.abs(s.Y_c).max(axis=0) / scale)
+        ya = self._max_relative(lambda s: s.Y_a)
+        yc = self._max_relative(lambda s: s.Y_c)
         return [
             "uncompensatable" if c > ZERO_TOLERANCE else "compensatable" if a > ZERO_TOLERANCE else "absorbed"
             for a, c in zip(ya, yc, strict=True)
         ]
+
+    def _max_relative(self, rows: Callable[[Separation], np.ndarray | None]) -> np.ndarray:
+        """Per parameter, the largest ``|row entry| / max(1, ‖error column‖)`` over the points."""
+        out = np.zeros(self.J.shape[2])
+        for s in self.separations:
+            m = rows(s)
+            if m is None or not m.size:
+                continue
+            scale = np.maximum(1.0, np.linalg.norm(s.error_columns, axis=0))
+            out = np.maximum(out, np.abs(m).max(axis=0) / scale)
+        return out
 
 
 def sweep(

@@ -7,10 +7,12 @@ lengths in mm or µm, angles in mrad (DESIGN.md, "Units").
 from __future__ import annotations
 
 import re
+from decimal import Decimal
 
 from pkmtol.exceptions import InvalidRequestError
 
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6}
+#: Length units and their power of ten relative to the metre.
+LENGTH_UNITS = {"m": 0, "mm": -3, "um": -6, "µm": -6, "μm": -6}
 
 #: Display scale of each SI unit in tables: (factor from SI, display unit).
 DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
@@ -45,7 +47,8 @@ def parse_length(value: str | float | int, what: str = "length") -> float:
         raise InvalidRequestError(
             f"{what}: unknown unit {unit!r} in {value!r}; use one of {', '.join(LENGTH_UNITS)}"
         )
-    return float(number) * LENGTH_UNITS[unit]
+    # decimal scaling, so that "50 um" is the double nearest to 5e-5, not 50 × 1e-6
+    return float(Decimal(number).scaleb(LENGTH_UNITS[unit]))
 
 
 def display(value_si: float, unit_si: str) -> float:
