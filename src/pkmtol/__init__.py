@@ -15,7 +15,14 @@ in every docstring (K: base, K': platform point with base axes).
 """
 
 from pkmtol.allocation import fosm_tolerances, sensitivities
-from pkmtol.design import DesignOptions, DesignResult, MethodDesign, Traditional, allocate
+from pkmtol.design import (
+    DesignOptions,
+    DesignResult,
+    MethodDesign,
+    Traditional,
+    allocate,
+    method_design_for,
+)
 from pkmtol.error_model import ErrorParameter, ParameterSet, default_set, parameter_set
 from pkmtol.error_table import ErrorTable, error_table
 from pkmtol.exceptions import (
@@ -79,6 +86,7 @@ __all__ = [
     "exact_reliability",
     "fosm_tolerances",
     "load_mechanism",
+    "method_design_for",
     "norm_moments",
     "parameter_set",
     "perturbed_limb_models",

@@ -243,7 +243,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     verified = tol[unc, design_col]
     if opt.method != "fosm":
         t0 = time.perf_counter()
-        method_design = _method_design(
+        method_design = method_design_for(
             mechanism, pset, grid, unc, tol[unc, design_col], target, design_beta, worst, opt
         )
         verified = method_design.sigma
@@ -305,7 +305,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     )
 
 
-def _method_design(
+def method_design_for(
     mechanism: Mechanism,
     pset: ParameterSet,
     grid: Sweep,
@@ -316,7 +316,19 @@ def _method_design(
     worst: int,
     opt: DesignOptions,
 ) -> MethodDesign:
-    """The ``exact`` or ``cost`` design at R* = Φ(design β)."""
+    """The ``exact`` or ``cost`` design of the η_c tolerances at R* = Φ(design β).
+
+    Args:
+        mechanism: The mechanism (its ``[cost]`` table feeds the cost model).
+        pset: Its parameter set.
+        grid: The task-space grid sweep.
+        unc: Indices of the uncompensatable parameters (the toleranced ones).
+        fosm_sigma: Their FOSM tolerances at the design β [SI] (the equal-effect shape).
+        target: Δλ* [m].
+        design_beta: β; R* = Φ(β).
+        worst: Grid index of the design point.
+        opt: ``opt.method`` (``exact`` or ``cost``) and ``opt.criterion``.
+    """
     r_star = float(reliability_fosm(design_beta))
     J = grid.J[:, :, unc]
     model = cost_model([pset.parameters[i] for i in unc], mechanism.extra.get("cost"))
