@@ -403,3 +403,190 @@ def test_convention_partner_missing(tmp_path):
     with pytest.raises(ClosureFrameError, match="partner 'closedloop2_B' is not in the tree") as err:
         closed_loop_limbs(folder / "robot.urdf", Sidecar())
     assert err.value.culprit == "closedloop2_A"
+
+
+# --- the cut on a small tree, and the sidecar's own checks --------------------------------------
+
+TINY = """<?xml version="1.0"?>
+<robot name="tiny">
+  <link name="base" />
+  <link name="a" />
+  <link name="b" />
+  <link name="tool" />
+  <link name="closedloop1_A" />
+  <link name="closedloop1_B" />
+  <joint name="j_a" type="revolute">
+    <origin xyz="0 0 0" rpy="0 0 0" />
+    <parent link="base" />
+    <child link="a" />
+    <axis xyz="0 0 1" />
+    <limit lower="-1" upper="1" effort="1" velocity="1" />
+  </joint>
+  <joint name="j_b_mot" type="prismatic">
+    <origin xyz="1 0 0" rpy="0 0 0" />
+    <parent link="base" />
+    <child link="b" />
+    <axis xyz="1 0 0" />
+    <limit lower="-1" upper="1" effort="1" velocity="1" />
+  </joint>
+  <joint name="j_tool" type="revolute">
+    <parent link="a" />
+    <child link="tool" />
+    <axis xyz="0 0 1" />
+    <limit lower="-1" upper="1" effort="1" velocity="1" />
+  </joint>
+  <joint name="a_to_A" type="fixed">
+    <origin xyz="1 0 0" rpy="0 0 0" />
+    <parent link="a" />
+    <child link="closedloop1_A" />
+  </joint>
+  <joint name="b_to_B" type="fixed">
+    <parent link="b" />
+    <child link="closedloop1_B" />
+  </joint>
+</robot>
+"""
+
+
+PAIR = ("closedloop1_A", "closedloop1_B")
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    urdf = tmp_path / "tiny.urdf"
+    urdf.write_text(TINY, encoding="utf-8")
+    return urdf
+
+
+def test_one_loop_takes_the_a_side_as_platform(tiny):
+    limbs, cut = closed_loop_limbs(tiny, Sidecar())
+    assert cut.platform_link == "a" and cut.beyond_platform == ("j_tool",)
+    assert [(lc.name, lc.joints, lc.actuated) for lc in cut.limbs] == [
+        ("limb1", ("j_a",), ()),
+        ("limb2", ("j_b_mot",), ("j_b_mot",)),
+    ]
+    assert [lb.attach_name for lb in limbs] == ["a_attach", "closedloop1"]  # platform = the joint's own link
+    # limb 2's platform frame: B at b's origin, A 1 m along a's x: the platform is 1 m back along x
+    p = limbs[1].model.frames[limbs[1].platform_frame].placement
+    np.testing.assert_allclose(p.translation, [-1.0, 0.0, 0.0], atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "sidecar,platform,error,culprit",
+    [
+        (Sidecar(), "nope", ClosedLoopError, "nope"),
+        (Sidecar(motors=("j_tool",)), None, ClosedLoopError, "j_tool"),
+        (Sidecar(joint_types={"j_b_mot": "FIXED"}), None, ClosedLoopError, "j_b_mot"),
+        (Sidecar(joint_types={"j_x": "FIXED"}), None, ClosedLoopError, "j_x"),
+        (Sidecar(loops=(PAIR, ("a", "closedloop1_A"))), None, ClosedLoopError, "a"),
+        (Sidecar(loops=(PAIR, ("closedloop1_A", "base"))), None, ClosedLoopError, "base"),
+        (Sidecar(loops=(PAIR, ("closedloop1_A", "tool"))), "a", ClosedLoopError, "tool"),
+        (Sidecar(loops=(PAIR, ("closedloop1_B", "tool"))), "a", ClosedLoopError, "closedloop1_B"),
+    ],
+    ids=[
+        "no-such-platform",
+        "motor-beyond-platform",
+        "fixed-motor",
+        "retype-unknown-joint",
+        "both-on-platform",
+        "closure-on-base",
+        "closure-below-platform",
+        "loop-misses-platform",
+    ],
+)
+def test_tiny_tree_refusals(tiny, sidecar, platform, error, culprit):
+    with pytest.raises(error) as err:
+        closed_loop_limbs(tiny, sidecar, platform_link=platform)
+    assert err.value.culprit == culprit
+
+
+def test_fixed_joint_is_locked_without_visuals(tiny):
+    _, cut = closed_loop_limbs(tiny, Sidecar(joint_types={"j_tool": "FIXED"}))
+    assert cut.beyond_platform == () and cut.locked == ("j_tool",)
+
+
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        ("<robot", "malformed XML"),
+        ("<robot name='x'><joint name='j' type='revolute'/></robot>", "Pinocchio cannot read it"),
+    ],
+)
+def test_unreadable_tree(tmp_path, text, needle):
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(text, encoding="utf-8")
+    with pytest.raises(PkmtolError, match=needle):
+        closed_loop_limbs(urdf, Sidecar())
+    with pytest.raises(PkmtolError, match="file not found"):
+        closed_loop_limbs(tmp_path / "missing.urdf", Sidecar())
+
+
+@pytest.mark.parametrize(
+    "doc,key",
+    [
+        ({"closed_loop": [["a"]]}, "closed_loop[0]"),
+        ({"closed_loop": [["a", "b"]], "type": ["6D"]}, None),
+        ({"closed_loop": [["a", "b"]], "type": ["2d"]}, "type[0]"),
+        ({"joint_name": ["j"], "joint_type": []}, "joint_type"),
+        ({"name_mot": ["m", 3]}, "name_mot"),
+        ({"name_mot": "m"}, "name_mot"),
+    ],
+)
+def test_sidecar_keys_are_checked(doc, key):
+    from pkmtol.closed_loop import sidecar_from_dict
+
+    if key is None:
+        assert sidecar_from_dict(doc).types == ("6d",)
+        return
+    with pytest.raises(MechanismFormatError) as err:
+        sidecar_from_dict(doc, "robot.yaml")
+    assert err.value.key == key
+
+
+@pytest.mark.parametrize(
+    "name,text,needle",
+    [
+        ("robot.toml", "closed_loop = [", "not valid TOML"),
+        ("robot.yaml", "closed_loop: [a, b\n", "not valid YAML"),
+        ("robot.yaml", "- a\n- b\n", "expected a mapping"),
+    ],
+)
+def test_sidecar_files_are_checked(tmp_path, name, text, needle):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(MechanismFormatError, match=needle):
+        read_sidecar(path)
+
+
+def test_literal_yaml_fallback(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "yaml", None)
+    path = tmp_path / "robot.yaml"
+    path.write_text("# loops\nclosed_loop: [['x_A', 'x_B']]  # one\n\nname_mot: ['m']\n", encoding="utf-8")
+    assert read_sidecar(path).loops == (("x_A", "x_B"),)
+    path.write_text("closed_loop: [[x_A, x_B]]\n", encoding="utf-8")
+    with pytest.raises(MechanismFormatError, match="without PyYAML"):
+        read_sidecar(path)
+
+
+def test_empty_sidecar_and_default_file(tmp_path):
+    (tmp_path / "robot.yaml").write_text("", encoding="utf-8")
+    assert read_sidecar(tmp_path / "robot.yaml") == Sidecar(path=tmp_path / "robot.yaml")
+    from pkmtol.closed_loop import default_sidecar
+
+    assert default_sidecar(tmp_path / "robot.urdf") == tmp_path / "robot.yaml"
+    with pytest.raises(MechanismFormatError, match="sidecar listing its loops"):
+        default_sidecar(tmp_path / "other.urdf")
+
+
+@pytest.mark.parametrize(
+    "old,new,key",
+    [
+        ('limbs = ["limb1", "limb2", "limb3", "limb4"]', "limbs = [1, 2, 3, 4]", "closed_loop.limbs"),
+        ("limb4_p3 = 0.75", 'limb4_p3 = "0.75"', "closed_loop.home.limb4_p3"),
+    ],
+)
+def test_closed_loop_table_is_checked(tmp_path, old, new, key):
+    folder = copy_tree(tmp_path, "mechanism.toml", old, new)
+    with pytest.raises(MechanismFormatError) as err:
+        load_mechanism(folder)
+    assert err.value.key == key

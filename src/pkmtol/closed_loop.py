@@ -715,7 +715,10 @@ def closed_loop_limbs(
                 "joint as three revolutes, a cardan as two",
             )
     if locked:
-        motors = set(side.motors or ())
+        if side.motors is not None:
+            motors = set(side.motors)
+        else:
+            motors = {n for n in tree.names[1:] if MOTOR_MARK in n}
         for j in locked:
             if tree.names[j] in motors:
                 raise ClosedLoopError(side.path or urdf, tree.names[j], "a motor joint cannot be FIXED")
