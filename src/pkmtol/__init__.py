@@ -15,6 +15,7 @@ in every docstring (K: base, K': platform point with base axes).
 """
 
 from pkmtol.allocation import fosm_tolerances, sensitivities
+from pkmtol.closed_loop import closed_loop_limbs, load_closed_loop
 from pkmtol.design import (
     DesignOptions,
     DesignResult,
@@ -26,17 +27,21 @@ from pkmtol.design import (
 from pkmtol.error_model import ErrorParameter, ParameterSet, default_set, parameter_set
 from pkmtol.error_table import ErrorTable, error_table
 from pkmtol.exceptions import (
+    ClosedLoopError,
+    ClosureFrameError,
     ConvergenceError,
     InvalidRequestError,
     JointLimitError,
     KinematicsError,
     MechanismFormatError,
     MobilityError,
+    NoLoopError,
     OutputError,
     PkmtolError,
     PlatformMismatchError,
     SingularPoseError,
     UnknownJointError,
+    UnknownMotorError,
     UnreachableTargetError,
     URDFError,
 )
@@ -51,6 +56,8 @@ from pkmtol.taskspace import TaskSpace
 
 __all__ = [
     "ClosedChain",
+    "ClosedLoopError",
+    "ClosureFrameError",
     "ConvergenceError",
     "DesignOptions",
     "DesignResult",
@@ -65,6 +72,7 @@ __all__ = [
     "MechanismFormatError",
     "MethodDesign",
     "MobilityError",
+    "NoLoopError",
     "OutputError",
     "ParameterSet",
     "PkmtolError",
@@ -78,13 +86,16 @@ __all__ = [
     "Traditional",
     "URDFError",
     "UnknownJointError",
+    "UnknownMotorError",
     "UnreachableTargetError",
     "Verification",
     "allocate",
+    "closed_loop_limbs",
     "default_set",
     "error_table",
     "exact_reliability",
     "fosm_tolerances",
+    "load_closed_loop",
     "load_mechanism",
     "method_design_for",
     "norm_moments",
