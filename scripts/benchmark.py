@@ -9,7 +9,9 @@ Rows (targets from the issues, on one core of the 2-core CI machine):
     * `pkmtol allocate` main job with defaults, per stage and in total    target ≤ 10 s
     * exact reliability of the linear model at one pose                   target ≤ 1 ms
     * cost-optimal design over the 147 grid poses                         target ≤ 20 s
-The best of ``--repeat`` runs is reported (the machine is shared; the best is the least disturbed).
+The best of ``--repeat-fast`` (sub-second rows) or ``--repeat`` runs is reported: this machine is a
+shared VM whose speed varies by up to ±40 % from one process to the next; the best run is the least
+disturbed one.
 """
 
 from __future__ import annotations
@@ -45,7 +47,8 @@ def best_of(repeat: int, fn) -> float:  # type: ignore[no-untyped-def]
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("robot", nargs="?", default="robots/r2rps_ups", type=Path)
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=3, help="runs of the slow rows (allocate, cost)")
+    ap.add_argument("--repeat-fast", type=int, default=20, help="runs of the sub-second rows")
     args = ap.parse_args()
     mech = load_mechanism(args.robot)
     grid = mech.task_space.grid()
@@ -57,27 +60,28 @@ def main() -> None:
         for p in grid[1:]:
             pose = chain.inverse(p, chain.predict(pose, p))
 
-    rows = []
-    t = best_of(args.repeat, ik_grid)
-    rows.append(
+    # the fast rows are interleaved, run after run, so that a slow spell of the VM hits all of them
+    fast = {"ik": ik_grid, "sweep": lambda: sweep(mech, pset, grid, chain)}
+    best = dict.fromkeys(fast, float("inf"))
+    for _ in range(args.repeat_fast):
+        for key, fn in fast.items():
+            best[key] = min(best[key], best_of(1, fn))
+    rows = [
         (
             "inverse kinematics, grid",
             f"{len(grid)} poses",
-            t,
-            f"{len(grid) / t:,.0f} poses/s",
+            best["ik"],
+            f"{len(grid) / best['ik']:,.0f} poses/s",
             "≥ 2,000 poses/s",
-        )
-    )
-    t = best_of(args.repeat, lambda: sweep(mech, pset, grid, chain))
-    rows.append(
+        ),
         (
             f"IK + error model + separation + J ({pset.kind})",
             f"{len(grid)} poses",
-            t,
-            f"{len(grid) / t:,.0f} poses/s",
+            best["sweep"],
+            f"{len(grid) / best['sweep']:,.0f} poses/s",
             "≥ 1,000 poses/s",
-        )
-    )
+        ),
+    ]
 
     results = []
     t = best_of(args.repeat, lambda: results.append(allocate(mech, DesignOptions())))
@@ -91,7 +95,7 @@ def main() -> None:
     J = res.grid.J[res.worst_index][:, unc] * res.tolerances[unc, res.design_column]
     cov = J @ J.T
     n_calls = 1000
-    t = best_of(args.repeat, lambda: [exact_reliability(cov, res.target_m) for _ in range(n_calls)])
+    t = best_of(args.repeat_fast, lambda: [exact_reliability(cov, res.target_m) for _ in range(n_calls)])
     rows.append(
         ("exact reliability, one pose", f"{n_calls} calls", t, f"{1e3 * t / n_calls:.3f} ms/call", "≤ 1 ms")
     )
@@ -112,7 +116,10 @@ def main() -> None:
     rows.append(("cost-optimal design (incl. reference)", f"{len(grid)} poses", t, f"{t:.2f} s", "≤ 20 s"))
 
     w = max(len(r[0]) for r in rows)
-    print(f"pkmtol benchmark — {mech.name}, best of {args.repeat}, numpy {np.__version__}")
+    print(
+        f"pkmtol benchmark — {mech.name}, best of {args.repeat_fast} (fast rows) / {args.repeat} runs, "
+        f"numpy {np.__version__}"
+    )
     print(f"{'stage'.ljust(w)}  {'size':>11}  {'time [s]':>9}  {'rate':>16}  target")
     print("-" * (w + 60))
     for name, size, secs, rate, target in rows:

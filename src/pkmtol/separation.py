@@ -7,9 +7,10 @@ At a pose, for each limb ``i`` with joint twists ``T_i`` (6, nq_i) in K':
 * actuation wrench ``w_a,i`` (actuated limbs): reciprocal to every *passive* joint of the limb
   and, among those, orthogonal (Euclidean, in K') to the limb's constraint wrenches — the choice
   that matters only for limbs that are both actuated and constrained (docs/theory.md). Since the
-  orthogonal complement of ``W_c,i`` is the span of ``T_i``, this ``w_a,i`` is the part of the
-  actuated joint's twist orthogonal to the passive twists (one QR); it is scaled to a unit screw
-  (unit force, or unit couple if it has no force), so ``Λ_a > 0``.
+  orthogonal complement of ``W_c,i`` is the span of ``T_i``, this ``w_a,i`` is row ``a`` of the
+  pseudo-inverse ``T_i⁺`` (reciprocal to every other joint, ``w · t_a = 1``), from the same SVD
+  that gives ``W_c,i``; it is scaled to a unit screw (unit force, or unit couple if it has no
+  force), so ``Λ_a > 0``.
 
 Reciprocal product = ``wrench · twist`` (power; twist ``[v; ω]``, wrench ``[f; τ]``, both at O').
 Projecting the limb's twist equation ``$_t = T_i q̇ + E_i η_i`` on the wrenches removes the
@@ -130,7 +131,10 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         sl = pset.slices[i]
         cols[:, sl] = e_i
         twists.append(t_i)
-        wc = null_space(t_i.T)
+        # one SVD of the joint twists gives both wrench sets: T_i = U_r S_r V_rᵀ
+        u, sv, vt = np.linalg.svd(t_i)
+        rank = int(np.sum(sv > RANK_TOLERANCE * max(sv[0], 1.0)))
+        wc = u[:, rank:]  # null(T_iᵀ): the constraint wrenches
         for k in range(wc.shape[1]):
             W_c.append(wc[:, k])
             con_limb.append(i)
@@ -138,12 +142,12 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
             row[sl] = wc[:, k] @ e_i
             Y_rows_c.append(row)
         for a in limb.actuated:
-            # w ∈ range(T_i) (⟂ W_c) and reciprocal to the passive twists: the part of the
-            # actuated twist orthogonal to the passive twists' span
+            # w ∈ range(T_i) (⟂ W_c) and reciprocal to the passive twists: row a of the
+            # pseudo-inverse T_i⁺ = V_r S_r⁻¹ U_rᵀ, since T_i⁺ T_i = I when the joints are independent
+            w = u[:, :rank] @ (vt[:rank, a] / sv[:rank])
             passive = [k for k in range(limb.nq) if k != a]
-            qp, _ = np.linalg.qr(t_i[:, passive])
-            w = t_i[:, a] - qp @ (qp.T @ t_i[:, a])
-            if np.linalg.norm(w) < RANK_TOLERANCE:
+            reciprocity = max(abs(w @ t_i[:, a] - 1.0), np.abs(w @ t_i[:, passive]).max(initial=0.0))
+            if not reciprocity < 1e-6:
                 raise MobilityError(
                     f"limb '{limb.name}': the actuated joint moves the platform only within the "
                     f"passive joints' span at P = {pose.p_m} m (actuation singularity)"
