@@ -25,7 +25,8 @@ import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 
 from pkmtol import DesignOptions, allocate, load_mechanism
-from pkmtol.viewer import MeshcatServer, SceneOptions, atomic_write, build_scene
+from pkmtol.files import write_atomic
+from pkmtol.viewer import MeshcatServer, SceneOptions, build_scene
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 
@@ -59,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         page = vis.static_html()
         pid = server.pid
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(args.out, page.encode("utf-8"))
+    write_atomic(args.out, page.encode("utf-8"))
 
     p = result.worst_point_m * 1e3
     print(

@@ -22,13 +22,13 @@ from pkmtol.check import CheckReport, JointReport, check_mechanism
 from pkmtol.design import DesignOptions, DesignResult, allocate
 from pkmtol.error_table import error_table
 from pkmtol.exceptions import PkmtolError
+from pkmtol.files import write_atomic
 from pkmtol.mechanism import load_mechanism
 from pkmtol.report import (
     check_output_folder,
     overconstraint_lines,
     summary_text,
     text_table,
-    write_atomic,
     write_outputs,
 )
 from pkmtol.sweep import CLASSES

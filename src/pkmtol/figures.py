@@ -16,11 +16,8 @@ left alone, so this works headless and inside notebooks alike.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,6 +26,7 @@ import numpy as np
 
 from pkmtol.design import DesignResult
 from pkmtol.exceptions import InvalidRequestError, OutputError, PkmtolError
+from pkmtol.files import write_atomic
 
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
@@ -41,8 +39,16 @@ ANGLE_COLOUR = "#e08a1e"
 SAFE_COLOUR = "#2e9e4f"
 FAILED_COLOUR = "#d62728"
 
-_GREEK = {"δ": r"\delta ", "θ": r"\theta ", "φ": r"\phi ", "α": r"\alpha ", "β": r"\beta ",
-          "γ": r"\gamma ", "ψ": r"\psi ", "λ": r"\lambda "}
+_GREEK = {
+    "δ": r"\delta ",
+    "θ": r"\theta ",
+    "φ": r"\phi ",
+    "α": r"\alpha ",
+    "β": r"\beta ",
+    "γ": r"\gamma ",
+    "ψ": r"\psi ",
+    "λ": r"\lambda ",
+}
 
 
 class FiguresError(PkmtolError):
@@ -112,17 +118,14 @@ def sensitivity_figure(result: DesignResult) -> Any:
     return fig
 
 
-def histogram_figure(
-    result: DesignResult, distribution: str = "gaussian", bins: int = HISTOGRAM_BINS
-) -> Any:
+def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins: int = HISTOGRAM_BINS) -> Any:
     """Histogram of the verification's Δλ with the Δλ* line and the failure fraction (Fig. 10)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     if distribution not in result.verification:
         raise InvalidRequestError(
-            f"no verification with distribution {distribution!r} "
-            f"(have: {', '.join(result.verification)})"
+            f"no verification with distribution {distribution!r} (have: {', '.join(result.verification)})"
         )
     if bins < 1:
         raise InvalidRequestError(f"bins must be ≥ 1, got {bins}")
@@ -149,15 +152,23 @@ def histogram_figure(
             label=f"failed (Δλ > Δλ*): {100 * st.failure_fraction:.2f} % "
             f"[{100 * lo:.2f}, {100 * up:.2f}] of {st.samples}",
         ),
-        Line2D([], [], color="none",
-               label=f"FOSM prediction 1 − Φ(β={result.design_beta:g}): "
-               f"{100 * (1 - float(_phi(result.design_beta))):.2f} %"),
+        Line2D(
+            [],
+            [],
+            color="none",
+            label=f"FOSM prediction 1 − Φ(β={result.design_beta:g}): "
+            f"{100 * (1 - float(_phi(result.design_beta))):.2f} %",
+        ),
     ]
     if ver.exact is not None:
         handles.append(
-            Line2D([], [], color="none",
-                   label=f"exact kinematics, {ver.exact.samples} samples: "
-                   f"{100 * ver.exact.failure_fraction:.2f} % failed")
+            Line2D(
+                [],
+                [],
+                color="none",
+                label=f"exact kinematics, {ver.exact.samples} samples: "
+                f"{100 * ver.exact.failure_fraction:.2f} % failed",
+            )
         )
     ax.legend(handles=handles, fontsize=8, loc="upper right")
     ax.set_xlabel("Δλ  [µm]  (linear model, random task-space poses)")
@@ -181,8 +192,9 @@ def tolerance_figure(result: DesignResult) -> Any:
     unc = np.asarray(result.uncompensatable, dtype=int)
     params = [result.pset.parameters[i] for i in unc]
     new = np.asarray(result.tolerances[unc, result.design_column], dtype=float) * 1e6
-    trad_of = dict(zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(),
-                       strict=True))
+    trad_of = dict(
+        zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(), strict=True)
+    )
     trad = np.array([trad_of.get(int(i), math.nan) for i in unc], dtype=float) * 1e6
     fig = _new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
     ax = fig.add_subplot()
@@ -190,18 +202,36 @@ def tolerance_figure(result: DesignResult) -> Any:
     w = 0.4
     finite = np.concatenate([v[np.isfinite(v)] for v in (new, trad)])
     top = float(finite.max()) * 3 if finite.size else 1.0
-    ax.bar(x - w / 2, np.where(np.isfinite(trad), trad, np.nan), w, color="#9a9a9a",
-           edgecolor="black", linewidth=0.5, label="traditional (all errors, no compensation)")
-    ax.bar(x + w / 2, np.where(np.isfinite(new), new, np.nan), w, color=LENGTH_COLOUR,
-           edgecolor="black", linewidth=0.5, label="new (η_c only, compensation applied)")
+    ax.bar(
+        x - w / 2,
+        np.where(np.isfinite(trad), trad, np.nan),
+        w,
+        color="#9a9a9a",
+        edgecolor="black",
+        linewidth=0.5,
+        label="traditional (all errors, no compensation)",
+    )
+    ax.bar(
+        x + w / 2,
+        np.where(np.isfinite(new), new, np.nan),
+        w,
+        color=LENGTH_COLOUR,
+        edgecolor="black",
+        linewidth=0.5,
+        label="new (η_c only, compensation applied)",
+    )
     for k, (a, b) in enumerate(zip(trad, new, strict=True)):
         for value, dx in ((a, -w / 2), (b, w / 2)):
             if not np.isfinite(value):
                 ax.text(k + dx, top / 3, "∞", ha="center", va="bottom", fontsize=9)
     ax.set_yscale("log")
     ax.set_ylim(top=top)
-    ax.set_xticks(x, [tex_name(p.name) + (" (µrad)" if p.unit == "rad" else "") for p in params],
-                  rotation=60, ha="right")
+    ax.set_xticks(
+        x,
+        [tex_name(p.name) + (" (µrad)" if p.unit == "rad" else "") for p in params],
+        rotation=60,
+        ha="right",
+    )
     ax.set_xlim(-0.7, len(unc) - 0.3)
     ax.set_ylabel("tolerance σ_i  [µm or µrad]")
     n_comp = sum(1 for c in result.classes if c == "compensatable")
@@ -222,28 +252,13 @@ def tolerance_figure(result: DesignResult) -> Any:
 
 def _render(fig: Any, fmt: str, dpi: int) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, dpi=dpi, metadata={"Software": None} if fmt == "png" else
-                {"Date": None, "Creator": None})
+    fig.savefig(
+        buf,
+        format=fmt,
+        dpi=dpi,
+        metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
+    )
     return buf.getvalue()
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as err:
-        raise OutputError(path, err.strerror or str(err)) from err
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
 
 
 def make_figures(result: DesignResult) -> dict[str, Any]:
@@ -289,5 +304,5 @@ def write_figures(
         for fmt in formats:
             rendered.append((out / f"{stem}.{fmt}", _render(fig, fmt, dpi)))
     for path, data in rendered:
-        _atomic_write(path, data)
+        write_atomic(path, data)
     return [path for path, _ in rendered]

@@ -8,6 +8,7 @@ form (Carlson's ``R_G``); its distribution function is a smooth integral over th
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy import integrate, special, stats
@@ -142,42 +143,27 @@ def exact_reliability_imhof(eigenvalues: np.ndarray, threshold_m: float) -> floa
 
     a = 50.0
     head, _ = integrate.quad(full, 0.0, a, limit=2000, epsabs=1e-13, epsrel=1e-12)
-    # tail: sin(φ − u/2) = sin φ cos(u/2) − cos φ sin(u/2)
-    t1, _ = integrate.quad(
-        lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)),
-        0.0,
-        np.inf,
-        weight="cos",
-        wvar=0.5,
-        limlst=200,
-    )
-    t2, _ = integrate.quad(
-        lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)),
-        0.0,
-        np.inf,
-        weight="sin",
-        wvar=0.5,
-        limlst=200,
-    )
-    # shift: cos(0.5 (u + a)) and sin(0.5 (u + a)) expanded around the shifted variable
+
+    # tail ∫_a^∞ sin(φ(u) − u/2)/(u ρ(u)) du with u = v + a and
+    # sin(φ − (v + a)/2) = sin φ [cos(v/2) cos(a/2) − sin(v/2) sin(a/2)]
+    #                    − cos φ [sin(v/2) cos(a/2) + cos(v/2) sin(a/2)]
+    def fourier(trig: Any, weight: str) -> float:
+        val, _ = integrate.quad(
+            lambda v: trig(phase(v + a)) / ((v + a) * amp(v + a)),
+            0.0,
+            np.inf,
+            weight=weight,
+            wvar=0.5,
+            limlst=200,
+        )
+        return float(val)
+
     ca, sa = math.cos(0.5 * a), math.sin(0.5 * a)
-    t3, _ = integrate.quad(
-        lambda u: math.sin(phase(u + a)) / ((u + a) * amp(u + a)),
-        0.0,
-        np.inf,
-        weight="sin",
-        wvar=0.5,
-        limlst=200,
+    tail = (
+        ca * fourier(math.sin, "cos")
+        - sa * fourier(math.sin, "sin")
+        - ca * fourier(math.cos, "sin")
+        - sa * fourier(math.cos, "cos")
     )
-    t4, _ = integrate.quad(
-        lambda u: math.cos(phase(u + a)) / ((u + a) * amp(u + a)),
-        0.0,
-        np.inf,
-        weight="cos",
-        wvar=0.5,
-        limlst=200,
-    )
-    # ∫ sinφ cos(½(u+a)) − cosφ sin(½(u+a)) = ca·t1 − sa·t3 − (sa·t4 + ca·t2)
-    tail = ca * t1 - sa * t3 - (sa * t4 + ca * t2)
     p_exceed = 0.5 + (head + tail) / math.pi
     return 1.0 - p_exceed

@@ -12,7 +12,6 @@ import io
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from pkmtol.design import DesignResult
 from pkmtol.exceptions import OutputError
+from pkmtol.files import write_atomic
 from pkmtol.sweep import Sweep
 from pkmtol.units import display, display_unit
 
@@ -450,21 +450,3 @@ def check_output_folder(out: Path) -> None:
         raise OutputError(out, f"{err.strerror}; choose another --out folder") from err
     if not os.access(out, os.W_OK):
         raise OutputError(out, "folder is not writable; choose another --out folder")
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file and rename (whole file or nothing)."""
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    except OSError as err:
-        raise OutputError(path, f"{err.strerror}; choose another --out folder") from err
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file ordinary permissions
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

@@ -69,6 +69,7 @@ import pinocchio as pin
 
 from pkmtol.design import DesignResult
 from pkmtol.exceptions import OutputError, PkmtolError
+from pkmtol.files import write_atomic
 from pkmtol.montecarlo import DISTRIBUTIONS, sample_errors
 from pkmtol.reliability import covariance_eigenvalues, norm_moments
 
@@ -176,9 +177,7 @@ class SceneOptions:
             )
         unknown = set(self.layers) - set(LAYERS)
         if unknown:
-            raise InvalidRequestError(
-                f"unknown layers {sorted(unknown)}; choose from {', '.join(LAYERS)}"
-            )
+            raise InvalidRequestError(f"unknown layers {sorted(unknown)}; choose from {', '.join(LAYERS)}")
         if self.max_sphere_radius_m is not None and not self.max_sphere_radius_m > 0:
             raise InvalidRequestError("max_sphere_radius_m must be > 0")
         if not self.cloud_radius_m > 0 or self.cloud_samples < 1:
@@ -260,9 +259,7 @@ def skeleton_geometry(model: pin.Model, radius: float = 0.02) -> pin.GeometryMod
             rot = np.eye(4)
             rot[:3, :3] = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
             placement = pin.SE3(rod_t @ np.linalg.inv(rot))
-            rod = pin.GeometryObject(
-                f"rod{j}", model.parents[j], placement, coal.Cylinder(radius, length)
-            )
+            rod = pin.GeometryObject(f"rod{j}", model.parents[j], placement, coal.Cylinder(radius, length))
             rod.meshColor = grey
             gm.addGeometryObject(rod)
     return gm
@@ -306,9 +303,7 @@ def _draw_robot(
                 pin.forwardKinematics(viz.model, viz.data, q)
                 pin.updateGeometryPlacements(viz.model, viz.data, visual, viz.visual_data)
                 for gid, g in enumerate(visual.geometryObjects):
-                    t = applyScalingOnHomegeneousTransform(
-                        viz.visual_data.oMg[gid].homogeneous, g.meshScale
-                    )
+                    t = applyScalingOnHomegeneousTransform(viz.visual_data.oMg[gid].homogeneous, g.meshScale)
                     f[f"{paths[i]}/visuals/{g.name}"].set_transform(t)
             if with_reference:
                 _reference_frames(f, pk)
@@ -342,9 +337,7 @@ def _sigma(result: DesignResult, which: str) -> np.ndarray:
         return np.asarray(result.search.sigma_analytic_m, dtype=float)
     unc = result.uncompensatable
     tol = _design_tolerances(result)
-    return np.array(
-        [norm_moments(covariance_eigenvalues(J[:, unc], tol))[1] for J in result.grid.J]
-    )
+    return np.array([norm_moments(covariance_eigenvalues(J[:, unc], tol))[1] for J in result.grid.J])
 
 
 def _design_tolerances(result: DesignResult) -> np.ndarray:
@@ -419,9 +412,11 @@ def _draw_verification(
     failed = dl > target
     mag = opt.cloud_radius_m / target
     worst = result.worst_point_m
-    axis = worst - np.array([*result.mechanism.task_space.center_xy_m, worst[2]]) if (
-        result.mechanism.task_space.kind == "cylinder"
-    ) else worst - result.grid.points_m.mean(axis=0)
+    axis = (
+        worst - np.array([*result.mechanism.task_space.center_xy_m, worst[2]])
+        if (result.mechanism.task_space.kind == "cylinder")
+        else worst - result.grid.points_m.mean(axis=0)
+    )
     axis[2] = 0.0
     if np.linalg.norm(axis) < 1e-9:
         axis = np.array([1.0, 0.0, 0.0])
@@ -479,9 +474,12 @@ def _draw_reference(scene: _Scene, result: DesignResult) -> None:
 
 def legend_lines(result: DesignResult, summary: dict[str, Any]) -> list[str]:
     """Return the legend of a scene, one line per entry (shown in the scene and the HTML page)."""
-    lines = [f"{result.mechanism.name}: design point P = "
-             + ", ".join(f"{1e3 * x:.0f}" for x in result.worst_point_m) + " mm"
-             + f" (grid point {result.worst_index})"]
+    lines = [
+        f"{result.mechanism.name}: design point P = "
+        + ", ".join(f"{1e3 * x:.0f}" for x in result.worst_point_m)
+        + " mm"
+        + f" (grid point {result.worst_index})"
+    ]
     if "radius_per_sigma" in summary:
         smin, smax = summary["sigma_range_m"]
         if summary["sigma_source"] == "search":
@@ -490,10 +488,12 @@ def legend_lines(result: DesignResult, summary: dict[str, Any]) -> list[str]:
         else:
             what = "σ[Δλ] at the design tolerances"
             rng = f"{1e6 * smin:.3g} … {1e6 * smax:.3g} µm"
-        lines.append(f"Error spheres ({summary['sphere_count']}): radius = "
-                     f"{summary['radius_per_sigma']:.4g} × {what}")
-        lines.append(f"  colour viridis over σ = {rng}; largest radius "
-                     f"{1e3 * summary['max_sphere_radius_m']:.0f} mm")
+        lines.append(
+            f"Error spheres ({summary['sphere_count']}): radius = {summary['radius_per_sigma']:.4g} × {what}"
+        )
+        lines.append(
+            f"  colour viridis over σ = {rng}; largest radius {1e3 * summary['max_sphere_radius_m']:.0f} mm"
+        )
     v = summary.get("verification")
     if v:
         pct = 100 * v["cloud_failed"] / v["cloud_samples"]
@@ -513,8 +513,20 @@ def legend_lines(result: DesignResult, summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-_ASCII = str.maketrans({"σ": "sigma", "Δ": "d", "λ": "lambda", "η": "eta", "β": "beta",
-                        "µ": "u", "×": "x", "…": "...", "≤": "<=", "→": "->"})
+_ASCII = str.maketrans(
+    {
+        "σ": "sigma",
+        "Δ": "d",
+        "λ": "lambda",
+        "η": "eta",
+        "β": "beta",
+        "µ": "u",
+        "×": "x",
+        "…": "...",
+        "≤": "<=",
+        "→": "->",
+    }
+)
 
 
 def _font(size: int) -> tuple[Any, bool]:
@@ -605,9 +617,7 @@ def _set_camera(vis: Any, result: DesignResult) -> None:
     vis["/Cameras/default/rotated/<object>"].set_property("position", [d[0], d[2], -d[1]])
 
 
-def build_scene(
-    result: DesignResult, vis: Any, options: SceneOptions | None = None
-) -> dict[str, Any]:
+def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = None) -> dict[str, Any]:
     """Draw a design into ``vis`` (a ``meshcat.Visualizer``); see the module docstring.
 
     Returns:
@@ -792,7 +802,11 @@ def find_chromium() -> str | None:
 
 
 def chromium_command(
-    chromium: str, html: Path, png: Path, profile: Path, size: tuple[int, int] = (1200, 900),
+    chromium: str,
+    html: Path,
+    png: Path,
+    profile: Path,
+    size: tuple[int, int] = (1200, 900),
     budget_ms: int = 10_000,
 ) -> list[str]:
     """Build the headless Chromium command that renders ``html`` (software WebGL) to ``png``."""
@@ -842,7 +856,7 @@ def screenshot(
         if not shot.is_file():
             tail = done.stderr.decode("utf-8", "replace")[-800:]
             raise ViewerError(f"Chromium made no screenshot (exit {done.returncode}): {tail}")
-        atomic_write(png, shot.read_bytes())
+        write_atomic(png, shot.read_bytes())
     return png
 
 
@@ -902,31 +916,10 @@ def export_html(
     overlay = _legend_overlay(summary["legend"], "sphere_count" in summary)
     page = page.replace("</body>", overlay + "\n</body>", 1)
     data = page.encode("utf-8")
-    atomic_write(path, data)
+    write_atomic(path, data)
     summary["path"] = path
     summary["bytes"] = len(data)
     return summary
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file renamed over it (OutputError on failure)."""
-    path = Path(path)
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as err:
-        raise OutputError(path, err.strerror or str(err)) from err
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
 
 
 def show(
@@ -974,4 +967,3 @@ def show(
         raise
     server.close()
     return None
-
