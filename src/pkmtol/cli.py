@@ -216,6 +216,8 @@ def _run_errors(args: argparse.Namespace) -> int:
     print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
+    wc = table.grid.W_condition
+    print(f"condition number of the wrench matrix W over the grid: {wc.min():.3g}–{wc.max():.3g}")
     rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True
