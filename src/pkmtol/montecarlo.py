@@ -198,6 +198,13 @@ def verify(
         ):
             full[:] = 0.0
             full[columns] = eta[s]
+            sep = sweep_random.separations[point_of[s]]
+            if sep.redundancy and sep.incompatible_map is not None:
+                # an over-constrained mechanism assembles only if the incompatible part vanishes;
+                # when the linear model already says it does not, Newton cannot close it either
+                y = np.vstack([sep.Y_a, sep.Y_c]) @ full
+                if np.linalg.norm(sep.incompatible_map @ full) > 1e-9 * max(np.linalg.norm(y), 1e-300):
+                    continue
             try:
                 dl_exact[s] = exact_position_error(mechanism, pset, chain, sweep_random, point_of[s], full)
             except ConvergenceError:
