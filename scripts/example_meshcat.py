@@ -56,17 +56,19 @@ def main(argv: list[str] | None = None) -> int:
             viz.display(np.asarray(q, dtype=float))
         # pkmtol's layers into the same viewer, without its own robot layer
         options = SceneOptions(layers=("error_spheres", "verification", "reference", "legend"), animate=False)
-        summary = build_scene(result, vis, options)
+        summary = build_scene(result, vis, options)  # a pkmtol.viewer.SceneSummary
         page = vis.static_html()
         pid = server.pid
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out, page.encode("utf-8"))
 
+    spheres = summary.spheres  # a pkmtol.viewer.SpheresLayer (None had the layer been off)
+    assert spheres is not None
     p = result.worst_point_m * 1e3
     print(
         f"design point P = ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm; "
-        f"{summary['sphere_count']} error spheres, largest radius "
-        f"{summary['max_sphere_radius_m'] * 1e3:.1f} mm"
+        f"{spheres.count} error spheres, largest radius "
+        f"{spheres.max_radius_m * 1e3:.1f} mm"
     )
     print(f"wrote {args.out} ({len(page)} characters); meshcat server {pid} stopped")
     return 0

@@ -35,7 +35,7 @@ def main() -> None:
     for path in write_figures(result, out, formats=("png",)):
         print(f"wrote {path}")
     with tempfile.TemporaryDirectory() as tmp:
-        html = export_html(result, Path(tmp) / "scene.html")["path"]
+        html = export_html(result, Path(tmp) / "scene.html").path
         print(f"wrote {screenshot(html, out / 'scene.png', size=(1200, 900))}")
 
 

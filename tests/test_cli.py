@@ -148,4 +148,5 @@ def test_show_html(tmp_path, capsys):
     html = tmp_path / "show.html"
     assert main(["show", str(SEED), "--html", str(html), "--samples", "300"]) == 0
     assert html.stat().st_size > 100_000
-    assert f"wrote {html}" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert f"wrote {html} ({html.stat().st_size} bytes, 147 error spheres)" in out

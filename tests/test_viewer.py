@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -18,8 +19,10 @@ from pkmtol.design import DesignOptions, allocate  # noqa: E402
 from pkmtol.mechanism import load_mechanism  # noqa: E402
 from pkmtol.viewer import (  # noqa: E402
     ROOT,
+    HtmlExport,
     MeshcatServer,
     SceneOptions,
+    SceneSummary,
     ViewerError,
     build_scene,
     export_html,
@@ -110,10 +113,10 @@ def _transforms(commands, prefix):
 
 def test_layers_each_have_their_own_path(recorded):
     summary, commands = recorded
-    assert summary["root"] == f"/meshcat/{ROOT}"
-    assert set(summary["layers"]) == {"robot", "error_spheres", "verification", "reference", "legend"}
+    assert summary.root == f"/meshcat/{ROOT}"
+    assert set(summary.layers) == {"robot", "error_spheres", "verification", "reference", "legend"}
     paths = {c["path"] for c in commands if c["type"] in ("set_object", "set_transform")}
-    for layer in summary["layers"].values():
+    for layer in summary.layers.values():
         assert any(p.startswith(f"/meshcat/{layer}/") or p == f"/meshcat/{layer}" for p in paths), layer
     for expected in (
         f"{ROOT}/reference/P",
@@ -123,7 +126,7 @@ def test_layers_each_have_their_own_path(recorded):
         f"{ROOT}/verification/task_space/safe",
         f"{ROOT}/legend",
     ):
-        assert expected in summary["nodes"], expected
+        assert expected in summary.nodes, expected
         assert f"/meshcat/{expected}" in paths, expected
 
 
@@ -131,7 +134,10 @@ def test_one_sphere_per_grid_point_with_radius_proportional_to_sigma(result, rec
     summary, commands = recorded
     m = len(result.grid.points_m)
     assert m == 147
-    assert summary["sphere_count"] == m
+    spheres = summary.spheres
+    assert spheres is not None and spheres.count == m
+    assert spheres.paths == tuple(f"{ROOT}/error_spheres/{k}" for k in range(m))
+    assert spheres.colors_rgb.shape == (m, 3) and spheres.sigma_source == "search"
     objs = _objects(commands, f"/meshcat/{ROOT}/error_spheres/")
     assert len(objs) == m
     tfs = _transforms(commands, f"/meshcat/{ROOT}/error_spheres/")
@@ -143,8 +149,8 @@ def test_one_sphere_per_grid_point_with_radius_proportional_to_sigma(result, rec
         radii[k] = geometry["radius"]
         np.testing.assert_allclose(tfs[path][:3, 3], result.grid.points_m[k], atol=1e-12)
     sigma = result.search.sigma_analytic_m
-    np.testing.assert_allclose(radii, summary["radius_per_sigma"] * sigma, rtol=1e-9)
-    np.testing.assert_allclose(radii, summary["sphere_radii_m"], rtol=1e-9)
+    np.testing.assert_allclose(radii, spheres.radius_per_sigma * sigma, rtol=1e-9)
+    np.testing.assert_allclose(radii, spheres.radii_m, rtol=1e-9)
     np.testing.assert_allclose(radii / sigma, radii[0] / sigma[0], rtol=1e-9)
     # the largest sphere is the design point, and spheres do not touch
     assert int(np.argmax(radii)) == result.worst_index
@@ -156,7 +162,7 @@ def test_one_sphere_per_grid_point_with_radius_proportional_to_sigma(result, rec
         [objs[f"/meshcat/{ROOT}/error_spheres/{k}"]["materials"][0]["color"] for k in range(m)]
     )
     assert colours[int(np.argmax(sigma))] != colours[int(np.argmin(sigma))]
-    assert any("radius =" in line for line in summary["legend"])
+    assert any("radius =" in line for line in summary.legend)
 
 
 def test_design_sigma_option(result):
@@ -166,11 +172,12 @@ def test_design_sigma_option(result):
         meshcat.Visualizer(window=window),
         SceneOptions(sigma="design", layers=("error_spheres",), animate=False),
     )
-    assert s["sigma_source"] == "design"
+    assert s.spheres is not None and s.spheres.sigma_source == "design"
     # at the design point the design-β tolerances give σ[Δλ] of the order of Δλ*
-    sig = s["sphere_sigma_m"]
+    sig = s.spheres.sigma_m
     assert 0.05 * result.target_m < sig[result.worst_index] < result.target_m
-    np.testing.assert_allclose(s["sphere_radii_m"], s["radius_per_sigma"] * sig)
+    np.testing.assert_allclose(s.spheres.radii_m, s.spheres.radius_per_sigma * sig)
+    assert s.robot_paths == () and s.verification is None and s.animation_frames == 0
 
 
 def test_robot_limbs_are_posed_consistently_at_the_design_point(result, recorded):
@@ -179,7 +186,7 @@ def test_robot_limbs_are_posed_consistently_at_the_design_point(result, recorded
     platform = []
     for limb in result.mechanism.limbs:
         root = f"/meshcat/{ROOT}/robot/{limb.name}/visuals/"
-        assert f"{ROOT}/robot/{limb.name}" in summary["robot_paths"]
+        assert f"{ROOT}/robot/{limb.name}" in summary.robot_paths
         objs = _objects(commands, root)
         assert len(objs) == limb.visual_model.ngeoms
         tfs = _transforms(commands, root)
@@ -204,7 +211,7 @@ def test_animation_visits_every_grid_point(result, recorded):
     anims = [c for c in commands if c["type"] == "set_animation"]
     assert len(anims) == 1
     assert anims[0]["options"]["play"] is False
-    assert summary["animation_frames"] == len(result.grid.points_m)
+    assert summary.animation_frames == len(result.grid.points_m)
     tracks = {a["path"] for a in anims[0]["animations"]}
     assert f"/meshcat/{ROOT}/reference/P" in tracks
     assert f"/meshcat/{ROOT}/robot/limb1/visuals/platform_0" in tracks
@@ -212,7 +219,8 @@ def test_animation_visits_every_grid_point(result, recorded):
 
 def test_verification_layer(result, recorded):
     summary, commands = recorded
-    v = summary["verification"]
+    v = summary.verification
+    assert v is not None and v.distribution == "gaussian" and v.cloud_center_m.shape == (3,)
     ver = result.verification["gaussian"]
     objs = _objects(commands, f"/meshcat/{ROOT}/verification/")
     n_points = 0
@@ -222,12 +230,12 @@ def test_verification_layer(result, recorded):
             packed = objs[path]["geometries"][0]["data"]["attributes"]["position"]
             assert packed["itemSize"] == 3 and packed["type"] == "Float32Array"
             n_points += len(packed["array"].data) // 12
-    assert n_points == ver.dlam_linear_m.size == v["task_space_samples"]
-    assert v["task_space_failed"] == int(np.sum(ver.dlam_linear_m > result.target_m))
+    assert n_points == ver.dlam_linear_m.size == v.task_space_samples
+    assert v.task_space_failed == int(np.sum(ver.dlam_linear_m > result.target_m))
     target = objs[f"/meshcat/{ROOT}/verification/cloud/target"]
-    assert target["geometries"][0]["radius"] == pytest.approx(v["cloud_target_radius_m"])
-    assert v["cloud_magnification"] == pytest.approx(v["cloud_target_radius_m"] / result.target_m)
-    assert 0 < v["cloud_failed"] < v["cloud_samples"]
+    assert target["geometries"][0]["radius"] == pytest.approx(v.cloud_target_radius_m)
+    assert v.cloud_magnification == pytest.approx(v.cloud_target_radius_m / result.target_m)
+    assert 0 < v.cloud_failed < v.cloud_samples
 
 
 def test_layers_option_draws_only_those(result):
@@ -235,7 +243,11 @@ def test_layers_option_draws_only_those(result):
     s = build_scene(result, meshcat.Visualizer(window=window), SceneOptions(layers=("robot",)))
     paths = {c["path"] for c in window.commands if c["type"] == "set_object"}
     assert all(p.startswith(f"/meshcat/{ROOT}/robot/") for p in paths)
-    assert "sphere_count" not in s and "verification" not in s
+    assert s.spheres is None and s.verification is None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.spheres = None  # type: ignore[misc]
+    assert set(s.layers) == {"robot"} and len(s.robot_paths) == len(result.mechanism.limbs)
+    assert not any("Error spheres" in line or "Verification" in line for line in s.legend)
 
 
 def test_bad_options_are_refused():
@@ -318,12 +330,14 @@ def test_server_exits_when_its_parent_is_killed():
 def test_export_html(result, tmp_path):
     path = tmp_path / "scene.html"
     s = export_html(result, path)
-    assert s["path"] == path and path.stat().st_size == s["bytes"]
+    assert isinstance(s, HtmlExport) and isinstance(s.scene, SceneSummary)
+    assert s.path == path and path.stat().st_size == s.bytes
+    assert s.scene.spheres is not None
     page = path.read_text(encoding="utf-8")
-    assert page.count('fetch("data:application/octet-binary;base64,') >= s["sphere_count"]
+    assert page.count('fetch("data:application/octet-binary;base64,') >= s.scene.spheres.count
     assert 'id="pkmtol-legend"' in page and "Error spheres (147)" in page
     assert "MeshCat.Viewer" in page
-    assert not _alive(s["server_pid"])
+    assert not _alive(s.server_pid)
     assert [p.name for p in tmp_path.iterdir()] == ["scene.html"]  # no temporary file left
     if Path("/proc").is_dir():
         assert _server_processes(os.getpid()) == []
@@ -361,7 +375,7 @@ def test_static_page_renders_in_headless_chromium(result, tmp_path):
         ("no_spheres", ("robot", "verification", "reference")),
     ):
         opt = SceneOptions() if layers is None else SceneOptions(layers=layers)
-        html = export_html(result, tmp_path / f"{name}.html", opt)["path"]
+        html = export_html(result, tmp_path / f"{name}.html", opt).path
         shots[name] = _pixels(screenshot(html, tmp_path / f"{name}.png", size=(1200, 900)))
     full = shots["full"]
     assert full.shape == (900, 1200, 3)
@@ -383,8 +397,6 @@ def test_static_page_renders_in_headless_chromium(result, tmp_path):
 
 
 def test_limb_without_visuals_is_drawn_as_a_skeleton(result):
-    import dataclasses
-
     from pkmtol.viewer import skeleton_geometry
 
     limbs = tuple(dataclasses.replace(limb, visual_model=None) for limb in result.mechanism.limbs)

@@ -356,7 +356,8 @@ def _view(result: DesignResult, html: Path | None, live: bool) -> None:
 
     if html is not None:
         info = export_html(result, html)
-        print(f"wrote {info['path']} ({info['bytes']} bytes, {info['sphere_count']} error spheres)")
+        spheres = info.scene.spheres
+        print(f"wrote {info.path} ({info.bytes} bytes, {spheres.count if spheres else 0} error spheres)")
     if live:
         show(result)
 

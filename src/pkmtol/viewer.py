@@ -2,6 +2,9 @@
 
 :func:`build_scene` draws a :class:`~pkmtol.design.DesignResult` into a ``meshcat.Visualizer``;
 :func:`export_html` writes it as one self-contained HTML page; :func:`show` serves it live.
+They return what they drew as frozen dataclasses: :class:`SceneSummary` (with a
+:class:`SpheresLayer` and a :class:`VerificationLayer` when those layers are drawn) and
+:class:`HtmlExport`.
 Every layer has its own meshcat path (under ``/meshcat``) so it can be hidden from the viewer's
 "Open Controls" panel:
 
@@ -20,9 +23,10 @@ Every layer has its own meshcat path (under ``/meshcat``) so it can be hidden fr
     and the largest sphere is the design point; with ``sigma="design"`` the errors are
     ``N(0, σ_i²)`` at the design-β tolerances and σ is in metres. ``scale`` makes the largest
     sphere ``max_sphere_radius_m`` (default: 0.35 × the smallest distance between two grid
-    points, so that spheres never touch); it is returned in the summary, written in the legend
-    and set as the property ``pkmtol_radius_per_sigma`` of the layer node. Colour: viridis over
-    [min σ, max σ] (dark purple = least, yellow = most sensitive).
+    points, so that spheres never touch); it is returned (``SceneSummary.spheres``, a
+    :class:`SpheresLayer`: ``radius_per_sigma``), written in the legend and set as the property
+    ``pkmtol_radius_per_sigma`` of the layer node. Colour: viridis over [min σ, max σ] (dark
+    purple = least, yellow = most sensitive).
 ``pkmtol/verification/...``
     The Monte Carlo verification (the paper's Fig. 9). ``cloud/safe`` and ``cloud/failed``:
     position-error vectors ``Δp = J η_c`` of P at the design point for ``cloud_samples`` draws of
@@ -182,6 +186,130 @@ class SceneOptions:
             raise InvalidRequestError("max_sphere_radius_m must be > 0")
         if not self.cloud_radius_m > 0 or self.cloud_samples < 1:
             raise InvalidRequestError("cloud_radius_m must be > 0 and cloud_samples ≥ 1")
+
+
+@dataclass(frozen=True, eq=False)
+class SpheresLayer:
+    """The error spheres drawn by :func:`build_scene` (layer ``pkmtol/error_spheres``).
+
+    ``m`` below is the number of task-space grid points (``len(result.grid.points_m)``); sphere
+    ``k`` is centred at ``result.grid.points_m[k]`` (frame K).
+
+    Attributes:
+        count: Number of spheres ``m`` (one per grid point).
+        paths: Shape (m,): meshcat path of each sphere, relative to ``/meshcat``
+            (``pkmtol/error_spheres/<k>``).
+        radii_m: Shape (m,): drawn radius of each sphere [m] (``radius_per_sigma · sigma_m``).
+        sigma_m: Shape (m,): σ[Δλ_k] at each grid point. With ``sigma_source == "search"``
+            (η_c ~ N(0, 1)) it is in metres per unit error (m per m or rad); with ``"design"``
+            (η_c at the design-β tolerances) in metres.
+        colors_rgb: Shape (m, 3): viridis colour of each sphere, RGB in [0, 1].
+        radius_per_sigma: The scale: drawn radius [m] per unit of σ (also the layer node's
+            property ``pkmtol_radius_per_sigma``); 0 if every σ is 0.
+        max_radius_m: Radius of the largest sphere [m] (``SceneOptions.max_sphere_radius_m`` or
+            0.35 × the smallest distance between two grid points).
+        sigma_source: ``"search"`` or ``"design"`` (:attr:`SceneOptions.sigma`).
+        sigma_range_m: ``(min σ, max σ)`` over the grid, the ends of the colour map, in the unit
+            of ``sigma_m``.
+
+    """
+
+    count: int
+    paths: tuple[str, ...]
+    radii_m: np.ndarray
+    sigma_m: np.ndarray
+    colors_rgb: np.ndarray
+    radius_per_sigma: float
+    max_radius_m: float
+    sigma_source: str
+    sigma_range_m: tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class VerificationLayer:
+    """The Monte Carlo verification drawn by :func:`build_scene` (layer ``pkmtol/verification``).
+
+    Attributes:
+        distribution: Verification distribution drawn (one of ``montecarlo.DISTRIBUTIONS``).
+        cloud_center_m: Shape (3,): where the cloud's Δλ* sphere is drawn, frame K [m] (just
+            outside the task space, radially out from the design point).
+        cloud_samples: Number of position-error vectors ``Δp = J η_c`` in the cloud.
+        cloud_failed: How many of them have ``‖Δp‖ > Δλ*`` (drawn red).
+        cloud_target_radius_m: Drawn radius of the Δλ* sphere [m] (``SceneOptions.cloud_radius_m``).
+        cloud_magnification: Drawn length per metre of Δp (``cloud_target_radius_m / Δλ*``,
+            dimensionless).
+        task_space_samples: Number of samples of the verification run
+            (``result.verification[distribution]``) drawn at their task-space points.
+        task_space_failed: How many of them have Δλ > Δλ* (drawn red).
+        safe_visible: Whether the safe (green) task-space samples are shown at first.
+
+    """
+
+    distribution: str
+    cloud_center_m: np.ndarray
+    cloud_samples: int
+    cloud_failed: int
+    cloud_target_radius_m: float
+    cloud_magnification: float
+    task_space_samples: int
+    task_space_failed: int
+    safe_visible: bool
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSummary:
+    """What :func:`build_scene` drew.
+
+    Attributes:
+        root: meshcat path of everything pkmtol drew (``/meshcat/pkmtol``).
+        layers: Layer name → its meshcat path relative to ``/meshcat`` (``pkmtol/<layer>``), for
+            the layers drawn (``SceneOptions.layers``).
+        worst_index: Grid index of the design point (the most error-sensitive pose, at which the
+            mechanism is drawn).
+        worst_point_m: Shape (3,): the design point P, frame K [m].
+        animation_frames: Number of frames of the (paused) animation through the task-space grid
+            (0 without the robot layer or with ``animate=False``).
+        robot_paths: meshcat path of each limb (``pkmtol/robot/<limb>``, relative to
+            ``/meshcat``), in the mechanism's limb order; empty without the robot layer.
+        spheres: The error spheres; None without the ``error_spheres`` layer.
+        verification: The verification cloud and samples; None without the ``verification``
+            layer.
+        legend: The legend, one line per entry (drawn in the ``legend`` layer and overlaid on an
+            exported page; computed even when that layer is off).
+        nodes: Every node path drawn, relative to ``/meshcat``, without duplicates, in drawing
+            order.
+
+    """
+
+    root: str
+    layers: dict[str, str]
+    worst_index: int
+    worst_point_m: np.ndarray
+    animation_frames: int
+    robot_paths: tuple[str, ...]
+    spheres: SpheresLayer | None
+    verification: VerificationLayer | None
+    legend: tuple[str, ...]
+    nodes: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class HtmlExport:
+    """What :func:`export_html` wrote.
+
+    Attributes:
+        path: The HTML file written.
+        bytes: Its size [bytes] (UTF-8).
+        server_pid: Process id of the meshcat server that built the page (stopped and reaped
+            before :func:`export_html` returned).
+        scene: What was drawn (the :func:`build_scene` summary).
+
+    """
+
+    path: Path
+    bytes: int
+    server_pid: int
+    scene: SceneSummary
 
 
 @dataclass
@@ -354,7 +482,7 @@ def _min_spacing(points: np.ndarray) -> float:
     return float(d.min())
 
 
-def _draw_spheres(scene: _Scene, result: DesignResult, opt: SceneOptions) -> dict[str, Any]:
+def _draw_spheres(scene: _Scene, result: DesignResult, opt: SceneOptions) -> SpheresLayer:
     g = _meshcat().geometry
     sigma = _sigma(result, opt.sigma)
     points = result.grid.points_m
@@ -376,17 +504,17 @@ def _draw_spheres(scene: _Scene, result: DesignResult, opt: SceneOptions) -> dic
         node.set_transform(_translation(p))
         paths.append(path)
     layer.set_property("pkmtol_radius_per_sigma", float(scale))
-    return {
-        "sphere_count": len(paths),
-        "sphere_paths": paths,
-        "sphere_radii_m": radii,
-        "sphere_sigma_m": sigma,
-        "sphere_colors_rgb": colours,
-        "radius_per_sigma": float(scale),
-        "max_sphere_radius_m": float(rmax),
-        "sigma_source": opt.sigma,
-        "sigma_range_m": (smin, smax),
-    }
+    return SpheresLayer(
+        count=len(paths),
+        paths=tuple(paths),
+        radii_m=radii,
+        sigma_m=sigma,
+        colors_rgb=colours,
+        radius_per_sigma=float(scale),
+        max_radius_m=float(rmax),
+        sigma_source=opt.sigma,
+        sigma_range_m=(smin, smax),
+    )
 
 
 def _points(position: np.ndarray, rgb: Sequence[float], size: float) -> Any:
@@ -398,7 +526,7 @@ def _points(position: np.ndarray, rgb: Sequence[float], size: float) -> Any:
 
 def _draw_verification(
     scene: _Scene, result: DesignResult, opt: SceneOptions, sphere_rmax: float
-) -> dict[str, Any]:
+) -> VerificationLayer:
     g = _meshcat().geometry
     target = float(result.target_m)
     base = f"{ROOT}/verification"
@@ -447,17 +575,17 @@ def _draw_verification(
         node.set_property("visible", bool(opt.show_safe_samples))
     if bad.any():
         scene.node(f"{ts}/failed").set_object(_points(ver.points_m[bad], FAILED_RGB, 0.02))
-    return {
-        "distribution": opt.distribution,
-        "cloud_center_m": centre,
-        "cloud_samples": int(dl.size),
-        "cloud_failed": int(failed.sum()),
-        "cloud_target_radius_m": float(opt.cloud_radius_m),
-        "cloud_magnification": float(mag),
-        "task_space_samples": int(bad.size),
-        "task_space_failed": int(bad.sum()),
-        "safe_visible": bool(opt.show_safe_samples),
-    }
+    return VerificationLayer(
+        distribution=opt.distribution,
+        cloud_center_m=centre,
+        cloud_samples=int(dl.size),
+        cloud_failed=int(failed.sum()),
+        cloud_target_radius_m=float(opt.cloud_radius_m),
+        cloud_magnification=float(mag),
+        task_space_samples=int(bad.size),
+        task_space_failed=int(bad.sum()),
+        safe_visible=bool(opt.show_safe_samples),
+    )
 
 
 def _draw_reference(scene: _Scene, result: DesignResult) -> None:
@@ -472,42 +600,52 @@ def _draw_reference(scene: _Scene, result: DesignResult) -> None:
     _rod(scene, f"{ROOT}/reference/offset", pose.oMp.translation, pose.p_m, 0.006, P_RGB)
 
 
-def legend_lines(result: DesignResult, summary: dict[str, Any]) -> list[str]:
-    """Return the legend of a scene, one line per entry (shown in the scene and the HTML page)."""
+def legend_lines(
+    result: DesignResult,
+    spheres: SpheresLayer | None = None,
+    verification: VerificationLayer | None = None,
+) -> list[str]:
+    """Return the legend of a scene, one line per entry (shown in the scene and the HTML page).
+
+    Args:
+        result: The design drawn.
+        spheres: The error-sphere layer drawn, if any (adds its scale and colour range).
+        verification: The verification layer drawn, if any (adds its counts).
+
+    Returns:
+        The lines, as in :attr:`SceneSummary.legend`.
+
+    """
     lines = [
         f"{result.mechanism.name}: design point P = "
         + ", ".join(f"{1e3 * x:.0f}" for x in result.worst_point_m)
         + " mm"
         + f" (grid point {result.worst_index})"
     ]
-    if "radius_per_sigma" in summary:
-        smin, smax = summary["sigma_range_m"]
-        if summary["sigma_source"] == "search":
+    if spheres is not None:
+        smin, smax = spheres.sigma_range_m
+        if spheres.sigma_source == "search":
             what = "σ[Δλ] for η_c ~ N(0,1) (m per unit error)"
             rng = f"{smin:.3g} … {smax:.3g}"
         else:
             what = "σ[Δλ] at the design tolerances"
             rng = f"{1e6 * smin:.3g} … {1e6 * smax:.3g} µm"
+        lines.append(f"Error spheres ({spheres.count}): radius = {spheres.radius_per_sigma:.4g} × {what}")
+        lines.append(f"  colour viridis over σ = {rng}; largest radius {1e3 * spheres.max_radius_m:.0f} mm")
+    v = verification
+    if v is not None:
+        pct = 100 * v.cloud_failed / v.cloud_samples
         lines.append(
-            f"Error spheres ({summary['sphere_count']}): radius = {summary['radius_per_sigma']:.4g} × {what}"
+            f"Verification cloud ({v.distribution} errors at the β = {result.design_beta:g} "
+            f"tolerances): {v.cloud_samples} position errors Δp at the design point, "
+            f"×{v.cloud_magnification:.0f}; blue sphere = Δλ* = {1e3 * result.target_m:g} mm"
         )
-        lines.append(
-            f"  colour viridis over σ = {rng}; largest radius {1e3 * summary['max_sphere_radius_m']:.0f} mm"
-        )
-    v = summary.get("verification")
-    if v:
-        pct = 100 * v["cloud_failed"] / v["cloud_samples"]
-        lines.append(
-            f"Verification cloud ({v['distribution']} errors at the β = {result.design_beta:g} "
-            f"tolerances): {v['cloud_samples']} position errors Δp at the design point, "
-            f"×{v['cloud_magnification']:.0f}; blue sphere = Δλ* = {1e3 * result.target_m:g} mm"
-        )
-        lines.append(f"  green ‖Δp‖ ≤ Δλ*, red beyond: {v['cloud_failed']} ({pct:.1f} %)")
-        n, k = v["task_space_samples"], v["task_space_failed"]
+        lines.append(f"  green ‖Δp‖ ≤ Δλ*, red beyond: {v.cloud_failed} ({pct:.1f} %)")
+        n, k = v.task_space_samples, v.task_space_failed
         lines.append(
             f"Verification run over the task space: {k} of {n} samples failed "
             f"({100 * k / max(n, 1):.2f} %), drawn red at their points"
-            + ("; safe ones green" if v["safe_visible"] else " (safe ones hidden)")
+            + ("; safe ones green" if v.safe_visible else " (safe ones hidden)")
         )
     lines.append("Reference: P magenta, platform frame x/y/z = red/green/blue")
     return lines
@@ -617,17 +755,21 @@ def _set_camera(vis: Any, result: DesignResult) -> None:
     vis["/Cameras/default/rotated/<object>"].set_property("position", [d[0], d[2], -d[1]])
 
 
-def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = None) -> dict[str, Any]:
+def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = None) -> SceneSummary:
     """Draw a design into ``vis`` (a ``meshcat.Visualizer``); see the module docstring.
 
+    Args:
+        result: The design to draw.
+        vis: A ``meshcat.Visualizer``; everything is drawn under its ``pkmtol`` path, which is
+            cleared first.
+        options: What to draw and how (default: :class:`SceneOptions`).
+
     Returns:
-        A summary: ``root`` (``/meshcat/pkmtol``), ``layers`` (layer → path), ``nodes`` (every
-        node path drawn, relative to ``/meshcat``), ``robot_paths``, ``sphere_count``,
-        ``sphere_paths``, ``sphere_radii_m``, ``sphere_sigma_m``, ``sphere_colors_rgb``,
-        ``radius_per_sigma`` (the scale: radius [m] per unit of σ), ``max_sphere_radius_m``,
-        ``sigma_source``, ``sigma_range_m``, ``verification`` (cloud and task-space counts,
-        magnification), ``animation_frames``, ``worst_index``, ``worst_point_m``, ``legend``
-        (list of lines). Keys of layers not drawn are absent.
+        What was drawn: paths, the error spheres' scale and colours, the verification counts, the
+        legend (:class:`SceneSummary`; the layer fields are None for layers not drawn).
+
+    Raises:
+        ViewerError: meshcat is missing.
 
     """
     _meshcat()
@@ -637,33 +779,33 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
     if opt.background_rgb is not None:
         vis["/Background"].set_property("top_color", list(opt.background_rgb))
         vis["/Background"].set_property("bottom_color", list(opt.background_rgb))
-    summary: dict[str, Any] = {
-        "root": f"{vis.path.lower()}/{ROOT}",
-        "layers": {name: f"{ROOT}/{name}" for name in opt.layers},
-        "worst_index": int(result.worst_index),
-        "worst_point_m": np.asarray(result.worst_point_m, dtype=float),
-        "animation_frames": 0,
-    }
     # reference first: the robot's animation keys its nodes
     if "reference" in opt.layers:
         _draw_reference(scene, result)
+    robot_paths: list[str] = []
+    frames = 0
     if "robot" in opt.layers:
-        paths, frames = _draw_robot(scene, result, opt.animate, "reference" in opt.layers)
-        summary["robot_paths"] = paths
-        summary["animation_frames"] = frames
-    rmax = 0.0
-    if "error_spheres" in opt.layers:
-        summary.update(_draw_spheres(scene, result, opt))
-        rmax = summary["max_sphere_radius_m"]
-    if "verification" in opt.layers:
-        summary["verification"] = _draw_verification(scene, result, opt, rmax)
-    summary["legend"] = legend_lines(result, summary)
+        robot_paths, frames = _draw_robot(scene, result, opt.animate, "reference" in opt.layers)
+    spheres = _draw_spheres(scene, result, opt) if "error_spheres" in opt.layers else None
+    rmax = spheres.max_radius_m if spheres is not None else 0.0
+    verification = _draw_verification(scene, result, opt, rmax) if "verification" in opt.layers else None
+    legend = legend_lines(result, spheres, verification)
     if "legend" in opt.layers:
-        _draw_legend(scene, result, summary["legend"], "error_spheres" in opt.layers)
+        _draw_legend(scene, result, legend, "error_spheres" in opt.layers)
     if opt.camera:
         _set_camera(vis, result)
-    summary["nodes"] = list(dict.fromkeys(scene.nodes))
-    return summary
+    return SceneSummary(
+        root=f"{vis.path.lower()}/{ROOT}",
+        layers={name: f"{ROOT}/{name}" for name in opt.layers},
+        worst_index=int(result.worst_index),
+        worst_point_m=np.asarray(result.worst_point_m, dtype=float),
+        animation_frames=frames,
+        robot_paths=tuple(robot_paths),
+        spheres=spheres,
+        verification=verification,
+        legend=tuple(legend),
+        nodes=tuple(dict.fromkeys(scene.nodes)),
+    )
 
 
 # --- the server ------------------------------------------------------------------------------
@@ -883,9 +1025,7 @@ def _legend_overlay(lines: list[str], with_bar: bool) -> str:
     )
 
 
-def export_html(
-    result: DesignResult, path: Path | str, options: SceneOptions | None = None
-) -> dict[str, Any]:
+def export_html(result: DesignResult, path: Path | str, options: SceneOptions | None = None) -> HtmlExport:
     """Write the scene as one self-contained HTML page (meshcat's ``static_html``), atomically.
 
     Starts a loopback-only meshcat server, builds the scene, takes the page, stops the server
@@ -894,8 +1034,8 @@ def export_html(
     the page (the 3D legend panel is hidden; it can be shown from the viewer's controls).
 
     Returns:
-        The :func:`build_scene` summary plus ``path`` (the file written), ``bytes`` and
-        ``server_pid`` (the stopped server's process id).
+        The file written, its size, the stopped server's process id and the :func:`build_scene`
+        summary (:class:`HtmlExport`).
 
     Raises:
         ViewerError: meshcat is missing or its server did not start.
@@ -908,18 +1048,16 @@ def export_html(
     with MeshcatServer() as server:
         vis = server.visualizer
         summary = build_scene(result, vis, options)
-        if "legend" in summary["layers"]:
+        if "legend" in summary.layers:
             # the page has the legend overlaid; the 3D panel stays available in the controls
             vis[f"{ROOT}/legend"].set_property("visible", False)
         page = vis.static_html()
-        summary["server_pid"] = server.pid
-    overlay = _legend_overlay(summary["legend"], "sphere_count" in summary)
+        server_pid = server.pid
+    overlay = _legend_overlay(list(summary.legend), summary.spheres is not None)
     page = page.replace("</body>", overlay + "\n</body>", 1)
     data = page.encode("utf-8")
     write_atomic(path, data)
-    summary["path"] = path
-    summary["bytes"] = len(data)
-    return summary
+    return HtmlExport(path=path, bytes=len(data), server_pid=server_pid, scene=summary)
 
 
 def show(
@@ -940,7 +1078,7 @@ def show(
     try:
         summary = build_scene(result, server.visualizer, options)
         out(f"meshcat viewer: {server.web_url}")
-        for line in summary["legend"]:
+        for line in summary.legend:
             out(line)
         if open_browser:
             import webbrowser
