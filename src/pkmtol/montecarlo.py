@@ -203,7 +203,7 @@ def verify(
                 # an over-constrained mechanism assembles only if the incompatible part vanishes;
                 # when the linear model already says it does not, Newton cannot close it either
                 y = np.vstack([sep.Y_a, sep.Y_c]) @ full
-                if np.linalg.norm(sep.incompatible_map @ full) > 1e-9 * max(np.linalg.norm(y), 1e-300):
+                if np.linalg.norm(sep.incompatible_map @ full) > 1e-9 * max(float(np.linalg.norm(y)), 1e-300):
                     continue
             try:
                 dl_exact[s] = exact_position_error(mechanism, pset, chain, sweep_random, point_of[s], full)
