@@ -93,14 +93,20 @@ def test_verification_exact_agrees_with_linear(result):
 def test_uniform_sigma_has_a_third_of_the_variance(result):
     """The paper's ±σ uniform check tests E[Δλ²] three times smaller than the design's."""
     v = result.verification
+
     def second(s):
         return s.std_m**2 + s.mean_m**2
+
     ratio = second(v["uniform_sqrt3_sigma"].linear) / second(v["uniform_sigma"].linear)
     assert 2.8 < ratio < 3.2
     # variance-matched Gaussian over the whole task space: E[Δλ²] stays below the design
     # point's (Δλ*/β)² (FOSM's design equation), since the design point is the most sensitive
     g = v["gaussian"].linear
-    assert 0.2 * (result.target_m / result.design_beta) ** 2 < second(g) <= (result.target_m / result.design_beta) ** 2
+    assert (
+        0.2 * (result.target_m / result.design_beta) ** 2
+        < second(g)
+        <= (result.target_m / result.design_beta) ** 2
+    )
 
 
 def test_traditional_is_tighter(result):

@@ -79,7 +79,10 @@ def test_allocate_same_seed_same_bytes(tmp_path, capsys):
 
 def test_allocate_method_exact(tmp_path, capsys):
     out = tmp_path / "x"
-    assert main(["allocate", str(SEED), "--out", str(out), "--method", "exact", "--criterion", "worst", *SMALL]) == 0
+    assert (
+        main(["allocate", str(SEED), "--out", str(out), "--method", "exact", "--criterion", "worst", *SMALL])
+        == 0
+    )
     doc = json.loads((out / "allocation.json").read_text(encoding="utf-8"))
     md = doc["method_design"]
     assert md["method"] == "exact" and md["criterion"] == "worst"
@@ -130,7 +133,9 @@ def test_dh_to_urdf_in_process_matches_files_and_kinematics():
             q = rng.uniform(-1, 1, limb.nq)
             pin.framesForwardKinematics(limb.model, data, q)
             m_dh = forward(limb.dh, q)
-            np.testing.assert_allclose(data.oMf[limb.platform_frame].homogeneous, m_dh.homogeneous, atol=1e-12)
+            np.testing.assert_allclose(
+                data.oMf[limb.platform_frame].homogeneous, m_dh.homogeneous, atol=1e-12
+            )
 
 
 def test_allocate_writes_figures_and_html(tmp_path, capsys):

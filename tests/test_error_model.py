@@ -20,8 +20,20 @@ ROBOTS = sorted(p.parent for p in (ROOT / "robots").glob("*/mechanism.toml"))
 SEED = ROOT / "robots" / "r2rps_ups"
 
 TABLE_IV_ETA_C = [
-    "δθ_{1,4}", "δd_{1,4}", "δa_{1,4}", "δφ_{1,4}", "δd_{2,4}", "δa_{2,4}", "δφ_{2,4}",
-    "δd_{3,4}", "δa_{3,4}", "δφ_{3,4}", "δθ_{4,4}", "δa_{4,4}", "δφ_{4,4}", "δθ_{e,4}",
+    "δθ_{1,4}",
+    "δd_{1,4}",
+    "δa_{1,4}",
+    "δφ_{1,4}",
+    "δd_{2,4}",
+    "δa_{2,4}",
+    "δφ_{2,4}",
+    "δd_{3,4}",
+    "δa_{3,4}",
+    "δφ_{3,4}",
+    "δθ_{4,4}",
+    "δa_{4,4}",
+    "δφ_{4,4}",
+    "δθ_{e,4}",
 ]
 
 
@@ -179,7 +191,9 @@ def test_error_columns_match_finite_differences(seed, kind):
                 qi = q + offsets[sum(lb.nq for lb in mech.limbs[:i]) :][: limb.nq]
                 pin.framesForwardKinematics(model, d, qi)
                 fd.append(pin.log6(oMp.actInv(d.oMf[limb.platform_frame])).vector)
-            np.testing.assert_allclose((fd[0] - fd[1]) / (2 * h), cols[:, k], atol=1e-7, err_msg=ps.names[ps.slices[i].start + k])
+            np.testing.assert_allclose(
+                (fd[0] - fd[1]) / (2 * h), cols[:, k], atol=1e-7, err_msg=ps.names[ps.slices[i].start + k]
+            )
 
 
 def test_table_iv_uncompensatable_set(seed_classes):

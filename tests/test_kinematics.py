@@ -42,9 +42,7 @@ def closure_error(mech: Mechanism, q_limbs) -> float:
         data = limb.model.createData()
         pin.framesForwardKinematics(limb.model, data, q)
         placements.append(data.oMf[limb.platform_frame])
-    return max(
-        float(np.linalg.norm(pin.log6(placements[0].actInv(m)).vector)) for m in placements[1:]
-    )
+    return max(float(np.linalg.norm(pin.log6(placements[0].actInv(m)).vector)) for m in placements[1:])
 
 
 # --- inverse and forward over the task space --------------------------------------------------
@@ -128,11 +126,7 @@ def test_perturbed_forward_matches_a_finite_difference_prediction(mech, grid_pos
     passive[chain.actuated_idx] = False
 
     def residual(s):
-        return (
-            ClosedChain(mech, models=perturbed_limb_models(mech, scaled(s)))
-            ._evaluate(q, None)[0]
-            .copy()
-        )
+        return ClosedChain(mech, models=perturbed_limb_models(mech, scaled(s)))._evaluate(q, None)[0].copy()
 
     dr_ds = (residual(h) - residual(-h)) / (2 * h)
     a_passive = chain._evaluate(q, None)[1][:, passive].copy()

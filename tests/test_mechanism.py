@@ -335,17 +335,13 @@ def test_cli_check_seed_robot(capsys):
     assert main(["check", str(SEED)]) == 0
     out = capsys.readouterr().out
     assert "reachable: 147/147 points" in out
-    assert (
-        "mobility: f = 3  (21 joints - rank 18 of the closure Jacobian at home; 3 actuators)" in out
-    )
+    assert "mobility: f = 3  (21 joints - rank 18 of the closure Jacobian at home; 3 actuators)" in out
     assert (
         "constraint wrenches per limb (6 - rank of its joint twists at home): "
         "limb1 0, limb2 0, limb3 0, limb4 3"
     ) in out
     assert re.search(r"limb1  limb1\.urdf  actuated: limb1_p3  constraint wrenches: 0", out)
-    assert re.search(
-        r"limb4  limb4\.urdf  actuated: none \(passive limb\)  constraint wrenches: 3", out
-    )
+    assert re.search(r"limb4  limb4\.urdf  actuated: none \(passive limb\)  constraint wrenches: 3", out)
     # joint rows carry their units: the actuated leg in mm, a revolute in deg
     assert re.search(r"limb1_p3\s+P\*\s+mm\s+400\.000\s+1600\.000", out)
     assert re.search(r"limb4_u1\s+R\s+deg\s+-90\.000\s+90\.000", out)

@@ -1,4 +1,4 @@
-"""Quality gates: ruff and mypy are clean on src/ (run as part of the suite, so CI enforces them)."""
+"""Quality gates, run in the suite so that CI enforces them: ruff on src/ scripts/ tests/, mypy on src/."""
 
 from __future__ import annotations
 
@@ -16,8 +16,10 @@ def _tool(name: str) -> str:
     return str(found) if found.exists() else (shutil.which(name) or name)
 
 
-def test_ruff_clean_on_src():
-    proc = subprocess.run([_tool("ruff"), "check", "src"], cwd=ROOT, capture_output=True, text=True)
+def test_ruff_clean_on_src_scripts_and_tests():
+    proc = subprocess.run(
+        [_tool("ruff"), "check", "src", "scripts", "tests"], cwd=ROOT, capture_output=True, text=True
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 

@@ -79,22 +79,37 @@ def mech():
 
 @pytest.fixture(scope="module")
 def exact_worst(mech):
-    return allocate(mech, DesignOptions(samples=2000, verification_poses=200, exact_samples=0,
-                                        method="exact", criterion="worst", seed=2))
+    return allocate(
+        mech,
+        DesignOptions(
+            samples=2000, verification_poses=200, exact_samples=0, method="exact", criterion="worst", seed=2
+        ),
+    )
 
 
 @pytest.fixture(scope="module")
 def cost_design(mech):
-    return allocate(mech, DesignOptions(samples=2000, verification_poses=200, exact_samples=0,
-                                        method="cost", seed=2))
+    return allocate(
+        mech, DesignOptions(samples=2000, verification_poses=200, exact_samples=0, method="cost", seed=2)
+    )
 
 
 def _independent_check(mech, result, pose_index):
     """Monte Carlo (linear) at one grid pose, and exact kinematics on a subsample there."""
     md = result.method_design
     one = sweep(mech, result.pset, result.grid.points_m[pose_index : pose_index + 1])
-    v = verify(mech, result.pset, one, result.uncompensatable, md.sigma, result.target_m,
-               "gaussian", 40_000, 200, np.random.default_rng(9))
+    v = verify(
+        mech,
+        result.pset,
+        one,
+        result.uncompensatable,
+        md.sigma,
+        result.target_m,
+        "gaussian",
+        40_000,
+        200,
+        np.random.default_rng(9),
+    )
     lo, hi = v.linear.failure_ci95
     assert lo <= 1 - md.reliability[pose_index] <= hi
     assert v.max_relative_difference < 1e-2
@@ -141,8 +156,14 @@ def test_cost_infeasible_names_binding_parameters(mech, cost_design):
     params = [r.pset.parameters[i] for i in unc]
     model = cost_model(params, {"length": {"t_min": 0.05}, "angle": {"t_min": 1.0}})
     with pytest.raises(InvalidRequestError, match=r"infeasible.*binding parameters are δ"):
-        cost_optimal(r.grid.J[:, :, unc], model, r.target_m, stats.norm.cdf(2.0),
-                     r.method_design.sigma, [p.name for p in params])
+        cost_optimal(
+            r.grid.J[:, :, unc],
+            model,
+            r.target_m,
+            stats.norm.cdf(2.0),
+            r.method_design.sigma,
+            [p.name for p in params],
+        )
 
 
 def test_cost_overrides_are_checked(cost_design):

@@ -68,9 +68,7 @@ def _alive(pid: int) -> bool:
 
 @pytest.fixture(scope="module")
 def result():
-    r = allocate(
-        load_mechanism(ROBOT), DesignOptions(samples=2000, exact_samples=20, verification_poses=200)
-    )
+    r = allocate(load_mechanism(ROBOT), DesignOptions(samples=2000, exact_samples=20, verification_poses=200))
     yield r
     # no server started by this test process survives the module
     if Path("/proc").is_dir():
@@ -97,9 +95,7 @@ def recorded(result):
 
 def _objects(commands, prefix):
     return {
-        c["path"]: c["object"]
-        for c in commands
-        if c["type"] == "set_object" and c["path"].startswith(prefix)
+        c["path"]: c["object"] for c in commands if c["type"] == "set_object" and c["path"].startswith(prefix)
     }
 
 
