@@ -50,7 +50,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pinocchio as pin
 
 from pkmtol.exceptions import (
@@ -67,8 +66,6 @@ from pkmtol.mechanism import (
     Mechanism,
     _make_limb,
     _Reader,
-    check_home,
-    check_root_links,
 )
 from pkmtol.taskspace import TaskSpace
 
@@ -793,19 +790,16 @@ def load_closed_loop(
     """
     urdf = Path(urdf)
     limbs, _ = closed_loop_limbs(urdf, sidecar, platform_link, limb_names, home)
-    mech = Mechanism(
-        name=name or urdf.stem,
-        limbs=tuple(limbs),
-        reference_point_m=np.asarray(reference_point_m, dtype=float),
-        task_space=task_space,
-        target_m=float(target_m),
-        betas=tuple(float(b) for b in betas),
-        design_beta=float(design_beta),
+    return Mechanism.from_limbs(
+        name or urdf.stem,
+        limbs,
+        reference_point_m,
+        task_space,
+        target_m,
+        betas,
+        design_beta,
         description=description,
     )
-    check_root_links(mech)
-    check_home(mech)
-    return mech
 
 
 def limbs_from_toml(folder: Path, r: _Reader) -> list[Limb]:

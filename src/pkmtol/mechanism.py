@@ -161,6 +161,30 @@ class Mechanism:
         for i, (lname, model) in enumerate(zip(names, models, strict=True)):
             home = None if homes is None else homes[i]
             limbs.append(_make_limb(lname, model, list(actuated[i]), platform_frame, home, None))
+        return cls.from_limbs(name, limbs, reference_point_m, task_space, target_m, betas, design_beta)
+
+    @classmethod
+    def from_limbs(
+        cls,
+        name: str,
+        limbs: Sequence[Limb],
+        reference_point_m: Sequence[float] | np.ndarray,
+        task_space: TaskSpace,
+        target_m: float = 5e-5,
+        betas: Sequence[float] = DEFAULT_BETAS,
+        design_beta: float = 2.0,
+        root: Path | None = None,
+        description: str = "",
+        extra: dict[str, Any] | None = None,
+    ) -> Mechanism:
+        """A mechanism from validated limbs, checked: one common root link, closed at ``home``.
+
+        Every constructor of pkmtol (TOML, ``pin.Model`` limbs, closed-loop tree) ends here.
+
+        Raises:
+            URDFError: the limbs start from different root links.
+            PlatformMismatchError: the platform frames do not coincide at ``home``.
+        """
         mech = cls(
             name=name,
             limbs=tuple(limbs),
@@ -169,7 +193,11 @@ class Mechanism:
             target_m=float(target_m),
             betas=tuple(float(b) for b in betas),
             design_beta=float(design_beta),
+            root=root,
+            description=description,
+            extra=dict(extra or {}),
         )
+        check_root_links(mech)
         check_home(mech)
         return mech
 
@@ -328,21 +356,18 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         dh = _read_dh(lr) if "dh" in ld else None
         model, visual = _load_urdf(lname, urdf)
         limbs.append(_make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
-    mech = Mechanism(
-        name=name,
-        limbs=tuple(limbs),
-        reference_point_m=p_ref,
-        task_space=task_space,
-        target_m=target_m,
-        betas=betas,
-        design_beta=design_beta,
+    return Mechanism.from_limbs(
+        name,
+        limbs,
+        p_ref,
+        task_space,
+        target_m,
+        betas,
+        design_beta,
         root=folder,
         description=r.get("description", str, default=""),
         extra={"cost": r.get("cost", dict, default={})},
     )
-    check_root_links(mech)
-    check_home(mech)
-    return mech
 
 
 def check_root_links(mech: Mechanism) -> None:
