@@ -93,6 +93,11 @@ class ClosedChain:
         self.upper = np.concatenate([m.upperPositionLimit for m in self.models])
         n_rows = 6 * (len(self.models) - 1)
         self._jac = np.zeros((n_rows + 3, int(self.offsets[-1])))
+        # per limb: model, data, platform frame, its columns in q, its closure rows (limb 0: none)
+        self._blocks = [
+            (m, d, fid, slice(int(self.offsets[i]), int(self.offsets[i + 1])), slice(6 * (i - 1), 6 * i))
+            for i, (m, d, fid) in enumerate(zip(self.models, self.datas, self.fids, strict=True))
+        ]
         self._res = np.zeros(n_rows + 3)
         self._last: tuple[np.ndarray, np.ndarray] | None = None  # (q, Jacobian) of last inverse
         self._failed_q: np.ndarray | None = None  # last iterate of a solve that did not converge
@@ -222,19 +227,18 @@ class ClosedChain:
         """
         jac, res = self._jac, self._res
         placements, jacs = [], []
-        for i, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
-            pin.computeJointJacobians(m, d, q[self.offsets[i] : self.offsets[i + 1]])  # and oMi
-            placements.append(pin.updateFramePlacement(m, d, self.fids[i]))
-            jacs.append(pin.getFrameJacobian(m, d, self.fids[i], pin.LOCAL))
+        for m, d, fid, cols, _ in self._blocks:
+            pin.computeJointJacobians(m, d, q[cols])  # and the joint placements oMi
+            placements.append(pin.updateFramePlacement(m, d, fid))
+            jacs.append(pin.getFrameJacobian(m, d, fid, pin.LOCAL))
         m0 = placements[0]
         j0 = jacs[0]
-        c0 = slice(self.offsets[0], self.offsets[1])
-        for i in range(1, len(self.models)):
-            e = m0.actInv(placements[i])
-            rows = slice(6 * (i - 1), 6 * i)
+        c0 = self._blocks[0][3]
+        for (_, _, _, cols, rows), mi, ji in zip(self._blocks[1:], placements[1:], jacs[1:], strict=True):
+            e = m0.actInv(mi)
             res[rows] = pin.log6(e).vector
             jl = pin.Jlog6(e)
-            jac[rows, self.offsets[i] : self.offsets[i + 1]] = jl @ jacs[i]
+            jac[rows, cols] = jl @ ji
             jac[rows, c0] = -(jl @ e.toActionMatrixInverse()) @ j0
         n = 6 * (len(self.models) - 1)
         if target is None:
