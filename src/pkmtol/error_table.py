@@ -11,7 +11,7 @@ from pkmtol.allocation import sensitivities
 from pkmtol.error_model import ParameterSet, default_set, parameter_set
 from pkmtol.kinematics import ClosedChain
 from pkmtol.mechanism import Mechanism
-from pkmtol.reliability import covariance_eigenvalues, norm_moments
+from pkmtol.reliability import grid_norm_moments
 from pkmtol.sweep import Sweep, sweep
 
 
@@ -76,7 +76,7 @@ def error_table(
     unc = [i for i, c in enumerate(classes) if c == "uncompensatable"]
     cols = unc if unc else list(range(len(pset)))
     maps = grid.J if unc else grid.J_total
-    sigma = np.array([norm_moments(covariance_eigenvalues(m[:, cols]))[1] for m in maps])
+    sigma = grid_norm_moments(maps[:, :, cols])[:, 1]
     worst = int(np.argmax(sigma))
     sens = np.zeros(len(pset))
     sens[unc] = sensitivities(grid.J[worst][:, unc])

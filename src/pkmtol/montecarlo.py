@@ -26,7 +26,7 @@ from pkmtol.error_model import ParameterSet
 from pkmtol.exceptions import ConvergenceError
 from pkmtol.kinematics import ClosedChain, perturbed_limb_models
 from pkmtol.mechanism import Mechanism
-from pkmtol.reliability import covariance_eigenvalues, norm_moments
+from pkmtol.reliability import grid_norm_moments
 from pkmtol.sweep import Sweep
 
 DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
@@ -60,7 +60,7 @@ def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator)
     sampled = np.empty(m)
     for j in range(m):
         sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
-    moments = np.array([norm_moments(covariance_eigenvalues(J[j])) for j in range(m)])
+    moments = grid_norm_moments(J)
     return PoseSearch(
         sigma_sampled_m=sampled,
         sigma_analytic_m=moments[:, 1],

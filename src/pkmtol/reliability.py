@@ -49,6 +49,15 @@ def norm_moments(eigenvalues: np.ndarray) -> tuple[float, float]:
     return mean, math.sqrt(max(second - mean * mean, 0.0))
 
 
+def grid_norm_moments(J: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    """:func:`norm_moments` of ``‖J_j η‖`` at every pose: ``J`` (m, 3, n), ``σ`` (n,) → (m, 2).
+
+    Column 0 is the mean, column 1 the standard deviation of ``Δλ_j`` [m] for independent
+    ``η_i ~ N(0, σ_i²)`` (``σ`` defaults to ones).
+    """
+    return np.array([norm_moments(covariance_eigenvalues(Jj, sigma)) for Jj in J]).reshape(-1, 2)
+
+
 # --- exact reliability of the linear model ------------------------------------------------
 
 #: Quadrature nodes over one octant of the unit sphere (the integrand depends on u² only):

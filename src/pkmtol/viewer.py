@@ -75,7 +75,7 @@ from pkmtol.design import DesignResult
 from pkmtol.exceptions import OutputError, PkmtolError
 from pkmtol.files import write_atomic
 from pkmtol.montecarlo import DISTRIBUTIONS, sample_errors
-from pkmtol.reliability import covariance_eigenvalues, norm_moments
+from pkmtol.reliability import grid_norm_moments
 
 #: Root of everything pkmtol draws, below meshcat's ``/meshcat``.
 ROOT = "pkmtol"
@@ -465,7 +465,7 @@ def _sigma(result: DesignResult, which: str) -> np.ndarray:
         return np.asarray(result.search.sigma_analytic_m, dtype=float)
     unc = result.uncompensatable
     tol = _design_tolerances(result)
-    return np.array([norm_moments(covariance_eigenvalues(J[:, unc], tol))[1] for J in result.grid.J])
+    return grid_norm_moments(result.grid.J[:, :, unc], tol)[:, 1]
 
 
 def _design_tolerances(result: DesignResult) -> np.ndarray:
