@@ -140,14 +140,18 @@ def ups(name: str, base: np.ndarray, plat: np.ndarray, u1: np.ndarray, s: list[n
     return axes, home
 
 
+def _radial_tangential(angle_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal unit vectors at ``angle_deg`` about z: radial and tangential (counter-clockwise)."""
+    a = math.radians(angle_deg)
+    return np.array([math.cos(a), math.sin(a), 0.0]), np.array([-math.sin(a), math.cos(a), 0.0])
+
+
 def tricept():
     rb, rp, h = 0.45, 0.18, 0.9  # base U radius, platform S radius, O' height at home
     platform = (np.array([0, 0, h]), np.eye(3))
     out = []
     for i, ang in enumerate((90.0, 210.0, 330.0)):
-        a = math.radians(ang)
-        r = np.array([math.cos(a), math.sin(a), 0])
-        t = np.array([-math.sin(a), math.cos(a), 0])
+        r, t = _radial_tangential(ang)
         # S axes at home: radial, tangential, vertical (orthogonal, far from gimbal lock)
         axes, home = ups(f"leg{i + 1}", rb * r, rp * r + [0, 0, h], t, [r, t, np.array([0, 0, 1.0])])
         lim = [[-60, 60], [-60, 60], [0.6, 1.4], [-180, 180], [-180, 180], [-180, 180]]
@@ -168,9 +172,7 @@ def sprint_z3(rb=0.3, rp=0.2, rod=0.4, zs=0.2):
     platform = (np.array([0, 0, h]), np.eye(3))
     out = []
     for i, ang in enumerate((90.0, 210.0, 330.0)):
-        a = math.radians(ang)
-        r = np.array([math.cos(a), math.sin(a), 0])
-        t = np.array([-math.sin(a), math.cos(a), 0])
+        r, t = _radial_tangential(ang)
         c = rb * r + [0, 0, zs]  # R joint on the slider
         b = rp * r + [0, 0, h]  # S joint on the platform
         rod_dir = unit(b - c)

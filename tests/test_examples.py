@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from process_checks import alive
 
 from pkmtol import error_table, fosm_tolerances, load_mechanism
 from pkmtol.mechanism import check_home
@@ -116,21 +117,13 @@ def _meshcat_commands(html: str) -> list[dict]:
     return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
 
 
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
-
-
 def test_meshcat_example_draws_into_your_own_visualizer(tmp_path):
     pytest.importorskip("meshcat")
     html = tmp_path / "scene.html"
     out = run("example_meshcat.py", "--out", str(html), "--samples", "300")
     m = re.search(r"(\d+) error spheres.*meshcat server (\d+) stopped", out, re.S)
     assert m is not None and m.group(1) == "147"
-    assert not _alive(int(m.group(2)))
+    assert not alive(int(m.group(2)))
     commands = _meshcat_commands(html.read_text(encoding="utf-8"))
     paths = [c.get("path", "") for c in commands]
     for limb in ("limb1", "limb2", "limb3", "limb4"):

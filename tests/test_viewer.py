@@ -15,6 +15,8 @@ import pytest
 
 meshcat = pytest.importorskip("meshcat")
 
+from process_checks import alive  # noqa: E402
+
 from pkmtol.design import DesignOptions, allocate  # noqa: E402
 from pkmtol.mechanism import load_mechanism  # noqa: E402
 from pkmtol.viewer import (  # noqa: E402
@@ -56,14 +58,6 @@ def _server_processes(parent: int | None = None) -> list[int]:
                 continue
         pids.append(int(entry.name))
     return pids
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
 
 
 @pytest.fixture(scope="module")
@@ -299,8 +293,8 @@ def test_server_listens_on_loopback_only_and_is_reaped():
         assert len(addresses) >= 2  # ZeroMQ and HTTP
         assert all(a.split(":")[0] == "0100007F" for a in addresses), addresses
         pid = server.pid
-        assert _alive(pid)
-    assert not _alive(pid)
+        assert alive(pid)
+    assert not alive(pid)
     assert server.proc.returncode is not None
 
 
@@ -318,9 +312,9 @@ def test_server_exits_when_its_parent_is_killed():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     pid = int(out.stdout.split()[0])
     deadline = time.monotonic() + 10
-    while _alive(pid) and time.monotonic() < deadline:
+    while alive(pid) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not _alive(pid)
+    assert not alive(pid)
 
 
 def test_export_html(result, tmp_path):
@@ -333,7 +327,7 @@ def test_export_html(result, tmp_path):
     assert page.count('fetch("data:application/octet-binary;base64,') >= s.scene.spheres.count
     assert 'id="pkmtol-legend"' in page and "Error spheres (147)" in page
     assert "MeshCat.Viewer" in page
-    assert not _alive(s.server_pid)
+    assert not alive(s.server_pid)
     assert [p.name for p in tmp_path.iterdir()] == ["scene.html"]  # no temporary file left
     if Path("/proc").is_dir():
         assert _server_processes(os.getpid()) == []
@@ -418,4 +412,4 @@ def test_show_serves_the_scene_on_loopback(result):
             assert page.status == 200
     finally:
         server.close()
-    assert not _alive(server.pid)
+    assert not alive(server.pid)
