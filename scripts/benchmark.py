@@ -27,12 +27,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from pkmtol.design import DesignOptions, allocate, method_design_for  # noqa: E402
-from pkmtol.error_model import default_set, parameter_set  # noqa: E402
-from pkmtol.kinematics import ClosedChain  # noqa: E402
-from pkmtol.mechanism import load_mechanism  # noqa: E402
-from pkmtol.reliability import exact_reliability  # noqa: E402
-from pkmtol.sweep import sweep  # noqa: E402
+from pkmtol.design.job import DesignOptions, allocate, method_design_for  # noqa: E402
+from pkmtol.design.reliability import exact_reliability  # noqa: E402
+from pkmtol.error_model.parameters import default_set, parameter_set  # noqa: E402
+from pkmtol.error_model.sweep import sweep  # noqa: E402
+from pkmtol.kinematics.closed_chain import ClosedChain  # noqa: E402
+from pkmtol.model.loader import load_mechanism  # noqa: E402
 
 
 def best_of(repeat: int, fn) -> float:  # type: ignore[no-untyped-def]

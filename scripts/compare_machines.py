@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.allocation import fosm_tolerances
-from pkmtol.error_table import ErrorTable, error_table
-from pkmtol.kinematics import ClosedChain
-from pkmtol.mechanism import load_mechanism
-from pkmtol.sweep import CLASSES
+from pkmtol.design.fosm import fosm_tolerances
+from pkmtol.error_model.sweep import CLASSES
+from pkmtol.error_model.table import ErrorTable, error_table
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.loader import load_mechanism
 
 SCALE = {"m": (1e6, "µm"), "rad": (1e6, "µrad")}
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pkmtol.dh import DHTable, forward
+from pkmtol.model.dh import DHTable, forward
 
 
 @dataclass

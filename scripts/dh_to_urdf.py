@@ -12,8 +12,9 @@ import sys
 import tomllib
 from pathlib import Path
 
-from pkmtol.dh import to_urdf
-from pkmtol.mechanism import _read_dh, _Reader
+from pkmtol.model.dh import to_urdf
+from pkmtol.model.loader import read_dh
+from pkmtol.model.reading import TomlReader
 
 
 def generate(folder: Path) -> dict[Path, str]:
@@ -26,7 +27,7 @@ def generate(folder: Path) -> dict[Path, str]:
     for i, ld in enumerate(doc["limbs"]):
         if "dh" not in ld:
             continue
-        table = _read_dh(_Reader(path, ld, prefix=f"limbs[{i}]."))
+        table = read_dh(TomlReader(path, ld, prefix=f"limbs[{i}]."))
         out[folder / ld["urdf"]] = to_urdf(table, ld["name"], base, platform, ld["name"])
     return out
 

@@ -2,11 +2,11 @@
 
 You already show your machine with ``pinocchio.visualize.MeshcatVisualizer``; pkmtol draws its
 layers (error spheres over the task space, the verification cloud, P and the platform frame, the
-legend) into the same ``meshcat.Visualizer`` with :func:`pkmtol.viewer.build_scene`, leaving the
+legend) into the same ``meshcat.Visualizer`` with :func:`pkmtol.present.viewer.scene.build_scene`, leaving the
 robot to you. Here "your" visualizers show the seed robot's limb URDFs, loaded the ordinary way
 (``pin.buildModelsFromUrdf``) under ``/meshcat/my_robot/<limb>``, posed at the design point.
 
-The meshcat server is pkmtol's loopback-only one (:class:`pkmtol.viewer.MeshcatServer`); it is
+The meshcat server is pkmtol's loopback-only one (:class:`pkmtol.present.viewer.server.MeshcatServer`); it is
 stopped (and reaped) when the ``with`` block ends, so the script saves the scene as one
 self-contained HTML file and exits instead of blocking. Open the file in a browser.
 
@@ -26,7 +26,9 @@ from pinocchio.visualize import MeshcatVisualizer
 
 from pkmtol import DesignOptions, allocate, load_mechanism
 from pkmtol.files import write_atomic
-from pkmtol.viewer import MeshcatServer, SceneOptions, build_scene
+from pkmtol.present.viewer.options import SceneOptions
+from pkmtol.present.viewer.scene import build_scene
+from pkmtol.present.viewer.server import MeshcatServer
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 
@@ -56,13 +58,13 @@ def main(argv: list[str] | None = None) -> int:
             viz.display(np.asarray(q, dtype=float))
         # pkmtol's layers into the same viewer, without its own robot layer
         options = SceneOptions(layers=("error_spheres", "verification", "reference", "legend"), animate=False)
-        summary = build_scene(result, vis, options)  # a pkmtol.viewer.SceneSummary
+        summary = build_scene(result, vis, options)  # a pkmtol.present.viewer.scene.SceneSummary
         page = vis.static_html()
         pid = server.pid
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out, page.encode("utf-8"))
 
-    spheres = summary.spheres  # a pkmtol.viewer.SpheresLayer (None had the layer been off)
+    spheres = summary.spheres  # a pkmtol.present.viewer.layers.SpheresLayer (None had the layer been off)
     assert spheres is not None
     p = result.worst_point_m * 1e3
     print(

@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol import DesignOptions, Mechanism, TaskSpace, allocate
-from pkmtol.report import table_rows, text_table
+from pkmtol.present.tables import table_rows, text_table
 
 BASE_RADIUS_M = 0.5  # UPS universal joints on a circle in the base plane
 PLATFORM_RADIUS_M = 0.2  # UPS spherical joints on a circle in the platform plane

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.mechanism import load_mechanism
+from pkmtol.model.loader import load_mechanism
 
 
 def _origin(joint: ET.Element) -> pin.SE3:

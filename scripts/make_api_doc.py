@@ -25,25 +25,54 @@ import pkmtol
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 #: Modules whose public names are documented besides ``pkmtol.__all__`` (imported from the module).
-EXTRA_MODULES = ("pkmtol.closed_loop", "pkmtol.viewer", "pkmtol.exceptions")
-#: Section order: the pipeline, then presentation, then errors.
+EXTRA_MODULES = (
+    "pkmtol.model.sidecar",
+    "pkmtol.model.tree_cut",
+    "pkmtol.model.closed_loop",
+    "pkmtol.present.viewer.options",
+    "pkmtol.present.viewer.colours",
+    "pkmtol.present.viewer.geometry",
+    "pkmtol.present.viewer.layers",
+    "pkmtol.present.viewer.legend",
+    "pkmtol.present.viewer.scene",
+    "pkmtol.present.viewer.server",
+    "pkmtol.present.viewer.browser",
+    "pkmtol.present.viewer.export",
+    "pkmtol.exceptions",
+)
+#: Section order: the pipeline (docs/architecture.md), then presentation, then errors.
 MODULE_ORDER = (
-    "pkmtol.mechanism",
-    "pkmtol.closed_loop",
-    "pkmtol.taskspace",
-    "pkmtol.kinematics",
-    "pkmtol.error_model",
-    "pkmtol.separation",
-    "pkmtol.sweep",
-    "pkmtol.error_table",
-    "pkmtol.allocation",
-    "pkmtol.montecarlo",
-    "pkmtol.reliability",
-    "pkmtol.exact_design",
-    "pkmtol.cost",
-    "pkmtol.design",
-    "pkmtol.report",
-    "pkmtol.viewer",
+    "pkmtol.model.limb",
+    "pkmtol.model.mechanism",
+    "pkmtol.model.loader",
+    "pkmtol.model.sidecar",
+    "pkmtol.model.tree_cut",
+    "pkmtol.model.closed_loop",
+    "pkmtol.model.taskspace",
+    "pkmtol.kinematics.closed_chain",
+    "pkmtol.kinematics.perturbation",
+    "pkmtol.error_model.parameters",
+    "pkmtol.error_model.accuracy",
+    "pkmtol.error_model.separation",
+    "pkmtol.error_model.sweep",
+    "pkmtol.error_model.table",
+    "pkmtol.design.fosm",
+    "pkmtol.design.pose_search",
+    "pkmtol.design.verification",
+    "pkmtol.design.reliability",
+    "pkmtol.design.exact",
+    "pkmtol.design.cost",
+    "pkmtol.design.job",
+    "pkmtol.present.tables",
+    "pkmtol.present.viewer.options",
+    "pkmtol.present.viewer.colours",
+    "pkmtol.present.viewer.geometry",
+    "pkmtol.present.viewer.layers",
+    "pkmtol.present.viewer.legend",
+    "pkmtol.present.viewer.scene",
+    "pkmtol.present.viewer.server",
+    "pkmtol.present.viewer.browser",
+    "pkmtol.present.viewer.export",
     "pkmtol.exceptions",
 )
 
@@ -156,8 +185,9 @@ def public_objects() -> dict[str, list[tuple[str, Any]]]:
     top = {id(getattr(pkmtol, n)) for n in pkmtol.__all__}
     for modname in EXTRA_MODULES:
         module = importlib.import_module(modname)
+        public = getattr(module, "__all__", None)
         for name, obj in vars(module).items():
-            if name.startswith("_") or id(obj) in top:
+            if name.startswith("_") or id(obj) in top or (public is not None and name not in public):
                 continue
             if (inspect.isclass(obj) or inspect.isfunction(obj)) and obj.__module__ == modname:
                 by_module.setdefault(modname, []).append((f"{modname}.{name}", obj))

@@ -12,10 +12,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from pkmtol.design import DesignOptions, allocate
-from pkmtol.figures import write_figures
-from pkmtol.mechanism import load_mechanism
-from pkmtol.viewer import export_html, screenshot
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.figures import write_figures
+from pkmtol.present.viewer.browser import screenshot
+from pkmtol.present.viewer.export import export_html
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol import KinematicsError, error_table, fosm_tolerances, load_mechanism, norm_moments
-from pkmtol.reliability import covariance_eigenvalues
-from pkmtol.report import text_table
+from pkmtol.error_model.accuracy import covariance_eigenvalues
+from pkmtol.present.tables import text_table
 from pkmtol.units import display_unit
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"

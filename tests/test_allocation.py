@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pkmtol.allocation import fosm_tolerances
-from pkmtol.design import DesignOptions, allocate
+from pkmtol.design.fosm import fosm_tolerances
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.error_model.accuracy import norm_moments
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError, OutputError
-from pkmtol.mechanism import load_mechanism
-from pkmtol.reliability import norm_moments
-from pkmtol.report import to_json, write_outputs
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.tables import to_json, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "robots" / "r2rps_ups"

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from pkmtol.cli import main
-from pkmtol.dh import forward, to_urdf
-from pkmtol.mechanism import load_mechanism
+from pkmtol.model.dh import forward, to_urdf
+from pkmtol.model.loader import load_mechanism
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "robots" / "r2rps_ups"

@@ -15,9 +15,8 @@ import numpy as np
 import pytest
 
 from pkmtol import load_mechanism
-from pkmtol.closed_loop import Sidecar, closed_loop_limbs, load_closed_loop, read_sidecar
-from pkmtol.design import DesignOptions, allocate
-from pkmtol.error_table import error_table
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.error_model.table import error_table
 from pkmtol.exceptions import (
     ClosedLoopError,
     ClosureFrameError,
@@ -27,6 +26,8 @@ from pkmtol.exceptions import (
     PlatformMismatchError,
     UnknownMotorError,
 )
+from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
+from pkmtol.model.sidecar import Sidecar, read_sidecar
 
 REPO = Path(__file__).resolve().parents[1]
 SEED = REPO / "robots" / "r2rps_ups"
@@ -533,7 +534,7 @@ def test_unreadable_tree(tmp_path, text, needle):
     ],
 )
 def test_sidecar_keys_are_checked(doc, key):
-    from pkmtol.closed_loop import sidecar_from_dict
+    from pkmtol.model.sidecar import sidecar_from_dict
 
     if key is None:
         assert sidecar_from_dict(doc).types == ("6d",)
@@ -571,7 +572,7 @@ def test_literal_yaml_fallback(tmp_path, monkeypatch):
 def test_empty_sidecar_and_default_file(tmp_path):
     (tmp_path / "robot.yaml").write_text("", encoding="utf-8")
     assert read_sidecar(tmp_path / "robot.yaml") == Sidecar(path=tmp_path / "robot.yaml")
-    from pkmtol.closed_loop import default_sidecar
+    from pkmtol.model.sidecar import default_sidecar
 
     assert default_sidecar(tmp_path / "robot.urdf") == tmp_path / "robot.yaml"
     with pytest.raises(MechanismFormatError, match="sidecar listing its loops"):

@@ -9,12 +9,13 @@ import pinocchio as pin
 import pytest
 from truth_checks import compensatable_residual_ratios
 
-from pkmtol.error_model import parameter_set, raw_columns_local
-from pkmtol.kinematics import ClosedChain, perturbed_limb_models
-from pkmtol.mechanism import load_mechanism
-from pkmtol.montecarlo import pose_error_twist
-from pkmtol.separation import null_space, separate
-from pkmtol.sweep import sweep
+from pkmtol.error_model.parameters import parameter_set
+from pkmtol.error_model.separation import null_space, separate
+from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.twists import pose_error_twist, raw_columns_local
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.perturbation import perturbed_limb_models
+from pkmtol.model.loader import load_mechanism
 
 ROOT = Path(__file__).resolve().parents[1]
 ROBOTS = sorted(p.parent for p in (ROOT / "robots").glob("*/mechanism.toml"))

@@ -17,7 +17,7 @@ import pytest
 from process_checks import alive
 
 from pkmtol import error_table, fosm_tolerances, load_mechanism
-from pkmtol.mechanism import check_home
+from pkmtol.model.mechanism import check_home
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = REPO / "scripts"

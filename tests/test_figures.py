@@ -10,18 +10,18 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from pkmtol.design import DesignOptions, allocate  # noqa: E402
-from pkmtol.figures import (  # noqa: E402
+from pkmtol.design.job import DesignOptions, allocate  # noqa: E402
+from pkmtol.exceptions import FiguresError  # noqa: E402
+from pkmtol.model.loader import load_mechanism  # noqa: E402
+from pkmtol.present.figures import (  # noqa: E402
     FIGURES,
     HISTOGRAM_BINS,
-    FiguresError,
     histogram_figure,
     sensitivity_figure,
     tex_name,
     tolerance_figure,
     write_figures,
 )
-from pkmtol.mechanism import load_mechanism  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 

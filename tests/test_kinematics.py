@@ -12,7 +12,7 @@ import pytest
 
 from pkmtol import ClosedChain, Mechanism, TaskSpace, load_mechanism
 from pkmtol.exceptions import JointLimitError, SingularPoseError, UnreachableTargetError
-from pkmtol.kinematics import perturbed_limb_models
+from pkmtol.kinematics.perturbation import perturbed_limb_models
 
 SEED = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 

@@ -22,14 +22,14 @@ import pinocchio as pin
 import pytest
 from truth_checks import compensatable_residual_ratios
 
-from pkmtol.check import check_mechanism
-from pkmtol.design import DesignOptions, allocate
-from pkmtol.error_model import parameter_set
-from pkmtol.kinematics import ClosedChain
-from pkmtol.mechanism import load_mechanism
-from pkmtol.report import summary_text, to_json_dict
-from pkmtol.separation import null_space
-from pkmtol.sweep import sweep
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.error_model.parameters import parameter_set
+from pkmtol.error_model.separation import null_space
+from pkmtol.error_model.sweep import sweep
+from pkmtol.kinematics.check import check_mechanism
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.tables import summary_text, to_json_dict
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))

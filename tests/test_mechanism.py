@@ -16,7 +16,6 @@ import pytest
 import yourdfpy
 
 from pkmtol import Mechanism, TaskSpace, load_mechanism
-from pkmtol.check import check_mechanism
 from pkmtol.cli import main
 from pkmtol.exceptions import (
     MechanismFormatError,
@@ -24,6 +23,7 @@ from pkmtol.exceptions import (
     UnknownJointError,
     URDFError,
 )
+from pkmtol.kinematics.check import check_mechanism
 
 REPO = Path(__file__).resolve().parents[1]
 SEED = REPO / "robots" / "r2rps_ups"

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pkmtol.cost import cost_model, cost_optimal
-from pkmtol.design import DesignOptions, allocate
+from pkmtol.design.cost import cost_model, cost_optimal
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.design.reliability import exact_reliability, exact_reliability_imhof
+from pkmtol.design.verification import verify
+from pkmtol.error_model.sweep import sweep
 from pkmtol.exceptions import InvalidRequestError
-from pkmtol.mechanism import load_mechanism
-from pkmtol.montecarlo import verify
-from pkmtol.reliability import exact_reliability, exact_reliability_imhof
-from pkmtol.sweep import sweep
+from pkmtol.model.loader import load_mechanism
 
 SEED = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 TARGET = 5e-5
@@ -128,7 +128,7 @@ def test_exact_design_meets_target_at_worst_pose(mech, exact_worst):
 def test_exact_every_and_average(mech, exact_worst):
     r = exact_worst
     J = r.grid.J[:, :, r.uncompensatable]
-    from pkmtol.exact_design import scale_design
+    from pkmtol.design.exact import scale_design
 
     shape = r.tolerances[r.uncompensatable, r.design_column]
     r_star = stats.norm.cdf(2.0)

@@ -17,21 +17,14 @@ meshcat = pytest.importorskip("meshcat")
 
 from process_checks import alive  # noqa: E402
 
-from pkmtol.design import DesignOptions, allocate  # noqa: E402
-from pkmtol.mechanism import load_mechanism  # noqa: E402
-from pkmtol.viewer import (  # noqa: E402
-    ROOT,
-    HtmlExport,
-    MeshcatServer,
-    SceneOptions,
-    SceneSummary,
-    ViewerError,
-    build_scene,
-    export_html,
-    find_chromium,
-    screenshot,
-    show,
-)
+from pkmtol.design.job import DesignOptions, allocate  # noqa: E402
+from pkmtol.exceptions import ViewerError  # noqa: E402
+from pkmtol.model.loader import load_mechanism  # noqa: E402
+from pkmtol.present.viewer.browser import find_chromium, screenshot  # noqa: E402
+from pkmtol.present.viewer.export import HtmlExport, export_html, show  # noqa: E402
+from pkmtol.present.viewer.options import ROOT, SceneOptions  # noqa: E402
+from pkmtol.present.viewer.scene import SceneSummary, build_scene  # noqa: E402
+from pkmtol.present.viewer.server import MeshcatServer  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "r2rps_ups"
 
@@ -47,7 +40,7 @@ def _server_processes(parent: int | None = None) -> list[int]:
             state = (entry / "stat").read_text().split(")")[-1].split()[0]
         except OSError:
             continue
-        if b"pkmtol.meshcat_server" not in argv or state == "Z":
+        if b"pkmtol.present.viewer.meshcat_server" not in argv or state == "Z":
             continue
         if parent is not None:
             try:
@@ -303,7 +296,7 @@ def test_server_exits_when_its_parent_is_killed():
     code = textwrap.dedent(
         """
         import os, sys
-        from pkmtol.viewer import MeshcatServer
+        from pkmtol.present.viewer.server import MeshcatServer
         s = MeshcatServer()
         print(s.pid, flush=True)
         os._exit(0)  # no atexit, no close: as if killed
@@ -387,7 +380,7 @@ def test_static_page_renders_in_headless_chromium(result, tmp_path):
 
 
 def test_limb_without_visuals_is_drawn_as_a_skeleton(result):
-    from pkmtol.viewer import skeleton_geometry
+    from pkmtol.present.viewer.geometry import skeleton_geometry
 
     limbs = tuple(dataclasses.replace(limb, visual_model=None) for limb in result.mechanism.limbs)
     bare = dataclasses.replace(result, mechanism=dataclasses.replace(result.mechanism, limbs=limbs))

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pkmtol.kinematics import ClosedChain, perturbed_limb_models
-from pkmtol.montecarlo import pose_error_twist
-from pkmtol.separation import separate
+from pkmtol.error_model.separation import separate
+from pkmtol.error_model.twists import pose_error_twist
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.perturbation import perturbed_limb_models
 
 
 def compensatable_residual_ratios(mech, chain, ps, classes, points, rng) -> list[float]:

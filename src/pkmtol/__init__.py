@@ -14,9 +14,8 @@ in every docstring (K: base, K': platform point with base axes).
 >>> result = pkmtol.allocate(mech)                       # doctest: +SKIP
 """
 
-from pkmtol.allocation import fosm_tolerances, sensitivities
-from pkmtol.closed_loop import closed_loop_limbs, load_closed_loop
-from pkmtol.design import (
+from pkmtol.design.fosm import fosm_tolerances
+from pkmtol.design.job import (
     DesignOptions,
     DesignResult,
     MethodDesign,
@@ -24,8 +23,14 @@ from pkmtol.design import (
     allocate,
     method_design_for,
 )
-from pkmtol.error_model import ErrorParameter, ParameterSet, default_set, parameter_set
-from pkmtol.error_table import ErrorTable, error_table
+from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
+from pkmtol.design.reliability import exact_reliability, reliability_fosm
+from pkmtol.design.verification import FailureStats, Verification, verify
+from pkmtol.error_model.accuracy import norm_moments, sensitivities
+from pkmtol.error_model.parameters import ErrorParameter, ParameterSet, default_set, parameter_set
+from pkmtol.error_model.separation import Separation, separate
+from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.table import ErrorTable, error_table
 from pkmtol.exceptions import (
     ClosedLoopError,
     ClosureFrameError,
@@ -45,14 +50,14 @@ from pkmtol.exceptions import (
     UnreachableTargetError,
     URDFError,
 )
-from pkmtol.kinematics import ClosedChain, Pose, perturbed_limb_models
-from pkmtol.mechanism import Limb, Mechanism, load_mechanism
-from pkmtol.montecarlo import FailureStats, PoseSearch, Verification, search_sensitive_pose, verify
-from pkmtol.reliability import exact_reliability, norm_moments, reliability_fosm
-from pkmtol.report import summary_text, to_json, write_outputs
-from pkmtol.separation import Separation, separate
-from pkmtol.sweep import Sweep, sweep
-from pkmtol.taskspace import TaskSpace
+from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.kinematics.perturbation import perturbed_limb_models
+from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
+from pkmtol.model.limb import Limb
+from pkmtol.model.loader import load_mechanism
+from pkmtol.model.mechanism import Mechanism
+from pkmtol.model.taskspace import TaskSpace
+from pkmtol.present.tables import summary_text, to_json, write_outputs
 
 __all__ = [
     "ClosedChain",

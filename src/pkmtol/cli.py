@@ -18,20 +18,20 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol import __version__
-from pkmtol.check import CheckReport, JointReport, check_mechanism
-from pkmtol.design import DesignOptions, DesignResult, allocate
-from pkmtol.error_table import error_table
-from pkmtol.exceptions import PkmtolError
+from pkmtol.design.job import DesignOptions, DesignResult, allocate
+from pkmtol.error_model.sweep import CLASSES
+from pkmtol.error_model.table import error_table
+from pkmtol.exceptions import FiguresError, PkmtolError
 from pkmtol.files import write_atomic
-from pkmtol.mechanism import load_mechanism
-from pkmtol.report import (
+from pkmtol.kinematics.check import CheckReport, JointReport, check_mechanism
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.tables import (
     check_output_folder,
     overconstraint_lines,
     summary_text,
     text_table,
     write_outputs,
 )
-from pkmtol.sweep import CLASSES
 from pkmtol.units import parse_length
 
 #: Exit code of a pkmtol error (bad input or an impossible request).
@@ -342,7 +342,7 @@ def _run_allocate(args: argparse.Namespace) -> int:
 
 def _write_figures(result: DesignResult, out: Path) -> None:
     """Figures next to the tables; without matplotlib, say how to get them and carry on."""
-    from pkmtol.figures import FiguresError, write_figures
+    from pkmtol.present.figures import write_figures
 
     try:
         for path in write_figures(result, out):
@@ -352,7 +352,7 @@ def _write_figures(result: DesignResult, out: Path) -> None:
 
 
 def _view(result: DesignResult, html: Path | None, live: bool) -> None:
-    from pkmtol.viewer import export_html, show
+    from pkmtol.present.viewer.export import export_html, show
 
     if html is not None:
         info = export_html(result, html)

@@ -248,3 +248,14 @@ class NoLoopError(ClosedLoopError):
 
     def __init__(self, path: Path | str, problem: str) -> None:
         super().__init__(path, "closed_loop", problem)
+
+
+# --- presentation -------------------------------------------------------------------------------
+
+
+class ViewerError(PkmtolError):
+    """The 3D viewer cannot run: meshcat is missing, or its server did not start."""
+
+
+class FiguresError(PkmtolError):
+    """Figures cannot be made: matplotlib is missing (``pip install 'pkmtol[plots]'``)."""

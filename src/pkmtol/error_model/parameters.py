@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
-from pkmtol.dh import dh_error_directions
 from pkmtol.exceptions import InvalidRequestError
-from pkmtol.mechanism import Limb, Mechanism
+from pkmtol.model.dh import dh_error_directions
+from pkmtol.model.limb import Limb
+from pkmtol.model.mechanism import Mechanism
 
 COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
 _EYE6 = np.eye(6)
@@ -89,7 +89,7 @@ class ParameterSet:
 
         Returns:
             ``(eps, offsets)``: per limb ``ε`` of shape (nq_i + 1, 6) for
-            :func:`pkmtol.kinematics.perturbed_limb_models`, and joint offsets (Σ nq_i,).
+            :func:`pkmtol.kinematics.perturbation.perturbed_limb_models`, and joint offsets (Σ nq_i,).
         """
         eps, offsets = [], []
         for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
@@ -175,33 +175,3 @@ def _dh_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
                 params.append(ErrorParameter(f"δ{sym}_{{{idx},{num}}}", i, unit))
             cols.append(col)
     return params, np.column_stack(cols)
-
-
-def raw_columns_local(
-    limb: Limb, model: pin.Model, data: pin.Data, q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
-    """Raw error columns and joint twists of a limb at ``q``, in the platform frame.
-
-    Returns:
-        ``(raw, jac, oMp)``: ``raw`` (6, 6·(nq+1) + nq) maps raw errors to the platform pose error
-        ``δ`` (``oMp_actual = oMp · exp6(δ)``, local frame); ``jac`` (6, nq) the local frame
-        Jacobian; ``oMp`` the platform placement.
-    """
-    fid = limb.platform_frame
-    pin.computeJointJacobians(model, data, q)
-    oMp = pin.updateFramePlacement(model, data, fid).copy()
-    jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-    n_reg = 6 * limb.nq
-    raw = np.empty((6, n_reg + 6 + limb.nq))
-    raw[:, :n_reg] = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
-    raw[:, n_reg : n_reg + 6] = _EYE6
-    raw[:, n_reg + 6 :] = jac
-    return raw, jac, oMp
-
-
-def to_k_prime(rotation: np.ndarray, local: np.ndarray) -> np.ndarray:
-    """Express local-frame twists (6, k) in K' (origin O', axes of K): ``diag(R, R) · local``."""
-    out = np.empty_like(local)
-    out[:3] = rotation @ local[:3]
-    out[3:] = rotation @ local[3:]
-    return out

@@ -20,8 +20,8 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.exceptions import KinematicsError
-from pkmtol.kinematics import ClosedChain
-from pkmtol.mechanism import Mechanism
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.mechanism import Mechanism
 
 #: Singular values below this fraction of the largest count as zero in rank decisions.
 RANK_TOLERANCE = 1e-9

@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.design import DesignResult
-from pkmtol.exceptions import InvalidRequestError, OutputError, PkmtolError
+from pkmtol.design.job import DesignResult
+from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
 
 #: Number of bins of the Δλ histogram.
@@ -49,10 +49,6 @@ _GREEK = {
     "ψ": r"\psi ",
     "λ": r"\lambda ",
 }
-
-
-class FiguresError(PkmtolError):
-    """The figures cannot be drawn: matplotlib is missing."""
 
 
 def _mpl() -> tuple[Any, Any]:

@@ -1,7 +1,7 @@
 """Designs that meet their reliability target exactly, and the claimed-vs-true comparison.
 
 FOSM treats ``Δλ = ‖J η_c‖`` as a normal variable; it is a norm. For Gaussian errors the exact
-``R = P(Δλ ≤ Δλ*)`` at a pose is :func:`pkmtol.reliability.exact_reliability` of
+``R = P(Δλ ≤ Δλ*)`` at a pose is :func:`pkmtol.design.reliability.exact_reliability` of
 ``Σ = J diag(σ²) Jᵀ``. :func:`scale_design` keeps the equal-effect *shape* ``σ_i ∝ 1/ω_i`` and
 scales it by root finding so that the exact R equals the target at the worst pose, at every grid
 pose (the minimum over the grid), or on average over the grid.
@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
+from pkmtol.design.reliability import exact_reliability
+from pkmtol.design.verification import failure_stats, sample_errors
 from pkmtol.exceptions import InvalidRequestError
-from pkmtol.montecarlo import failure_stats, sample_errors
-from pkmtol.reliability import exact_reliability
 
 CRITERIA = ("worst", "every", "average")
 

@@ -13,22 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pkmtol.allocation import check_design, fosm_tolerances, sensitivities
-from pkmtol.cost import cost_model, cost_optimal
-from pkmtol.error_model import ParameterSet, default_set, parameter_set
-from pkmtol.exact_design import CRITERIA, ClaimRow, claimed_vs_true, scale_design
+from pkmtol.design.cost import cost_model, cost_optimal
+from pkmtol.design.exact import CRITERIA, ClaimRow, claimed_vs_true, scale_design
+from pkmtol.design.fosm import check_design, fosm_tolerances
+from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
+from pkmtol.design.reliability import reliability_fosm
+from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify
+from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
+from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
+from pkmtol.error_model.sweep import Sweep, sweep
 from pkmtol.exceptions import InvalidRequestError
-from pkmtol.kinematics import ClosedChain
-from pkmtol.mechanism import Mechanism
-from pkmtol.montecarlo import (
-    DISTRIBUTIONS,
-    PoseSearch,
-    Verification,
-    search_sensitive_pose,
-    verify,
-)
-from pkmtol.reliability import grid_norm_moments, reliability_fosm
-from pkmtol.sweep import Sweep, sweep
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.mechanism import Mechanism
 
 
 @dataclass(frozen=True)

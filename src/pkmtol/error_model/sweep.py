@@ -8,10 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from pkmtol.error_model import ParameterSet
-from pkmtol.kinematics import ClosedChain, Pose
-from pkmtol.mechanism import Mechanism
-from pkmtol.separation import Separation, separate
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.separation import Separation, separate
+from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.model.mechanism import Mechanism
 
 #: Relative size of a projection below which it counts as zero (classification).
 ZERO_TOLERANCE = 1e-9

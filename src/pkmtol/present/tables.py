@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.design import DesignResult
+from pkmtol.design.job import DesignResult
+from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
 from pkmtol.files import write_atomic
-from pkmtol.sweep import Sweep
 from pkmtol.units import display, display_unit
 
 

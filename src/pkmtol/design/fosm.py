@@ -17,11 +17,6 @@ import numpy as np
 from pkmtol.exceptions import InvalidRequestError
 
 
-def sensitivities(J: np.ndarray) -> np.ndarray:
-    """``ω_i = ‖J[:, i]‖`` (n,) [m per m or m per rad] for ``J`` of shape (3, n)."""
-    return np.linalg.norm(J, axis=0)
-
-
 def fosm_tolerances(omega: np.ndarray, target_m: float, betas: np.ndarray) -> np.ndarray:
     """Equal-effect FOSM tolerances ``σ_i(β) = Δλ*/(√n ω_i β)``.
 

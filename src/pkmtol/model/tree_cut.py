@@ -1,100 +1,26 @@
-"""Closed-loop URDF import: one URDF tree with closure frame pairs, cut into serial limbs.
+"""Cutting a closed-loop URDF tree into serial limbs: which link is the platform, which joints make each limb.
 
-The convention is the "extended URDF" of Gepetto's example-parallel-robots (docs/closed-loop.md):
-the mechanism is written as one kinematic *tree* rooted at the base link; every kinematic loop is
-left open in the tree and closed by a pair of frames that must coincide, named
-``closedloop<k>_A`` / ``closedloop<k>_B`` (k = loop number, 1-based). A sidecar file next to the
-URDF (``robot.yaml``, or ``robot.toml`` with the same keys) lists the loops and the motors:
-
-``closed_loop``
-    list of frame-name pairs ``[[frame, frame], ...]``, one per loop (either order); when the key
-    is missing, frames named ``closedloop<k>_A`` / ``closedloop<k>_B`` are paired by ``k``.
-``type``
-    per loop, ``"6d"`` (the two frames coincide in position and orientation) or ``"3d"`` (position
-    only); default all ``"6d"``. pkmtol takes ``"6d"`` loops only.
-``name_mot``
-    the motor (actuated) joints; default: every joint whose name contains ``mot``.
-``joint_name`` / ``joint_type``
-    optional joint re-typing; ``FIXED`` locks a joint at 0 (``SPHERICAL`` and ``CARDAN`` are not
-    1-DOF joints and are refused: write them as 3 or 2 revolutes).
-
-How the tree is cut (:func:`cut_tree`):
-
-* the **platform** is the link that holds one side of every loop (``platform_link`` overrides it;
-  with a single loop, the ``_A`` side's link is taken); its frame is the platform frame O';
-* the **reference limb** (limb 1) is the chain from the root to the platform: the branch the
-  platform hangs on in the tree;
-* each loop k gives one more limb: the chain from the root to the loop's other frame (the
-  *limb-side* closure frame), ended by a platform frame placed where the platform is when the
-  loop is closed: ``jMp = jMB · (pMA)⁻¹`` (B the limb-side frame relative to the limb's last
-  joint, A the platform-side frame relative to the platform frame). Its origin error is that
-  limb's platform-attachment parameter, named after the loop (``<limb>.closedloop<k>.dx`` ...);
-* joints beyond the platform (e.g. a serial wrist) are not part of the parallel mechanism and are
-  left out; any other moving joint that lies on no limb is an error (lock it with ``FIXED``).
-
-Each limb's ``pin.Model`` is built joint by joint from the tree's ``pin.Model`` (same joint
-models, placements and limits; the root link, the joint and body frames along the chain), so the
-numbers are the tree's own. The result is an ordinary :class:`~pkmtol.mechanism.Mechanism`;
-every later stage (kinematics, error model, allocation, viewer) sees serial limbs.
+See :mod:`pkmtol.model.closed_loop` for the convention and the rules of the cut.
 """
 
 from __future__ import annotations
 
-import ast
-import dataclasses
 import re
-import tomllib
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
 
-from pkmtol.exceptions import (
-    ClosedLoopError,
-    ClosureFrameError,
-    MechanismFormatError,
-    NoLoopError,
-    UnknownMotorError,
-    URDFError,
-)
-from pkmtol.mechanism import (
-    DEFAULT_BETAS,
-    Limb,
-    Mechanism,
-    _make_limb,
-    _Reader,
-)
-from pkmtol.taskspace import TaskSpace
+from pkmtol.exceptions import ClosedLoopError, ClosureFrameError, NoLoopError, UnknownMotorError, URDFError
+from pkmtol.model.sidecar import Sidecar
 
 #: Closure frame names of the convention: ``closedloop<k>_A`` / ``closedloop<k>_B``.
 CLOSURE_FRAME = re.compile(r"^closedloop(\d+)_([AB])$")
-#: Sidecar file names tried next to ``<stem>.urdf`` when none is given.
-SIDECAR_SUFFIXES = (".yaml", ".yml", ".toml")
 #: Substring that marks a motor joint when the sidecar has no ``name_mot`` (example-parallel-robots).
 MOTOR_MARK = "mot"
-
-
-@dataclass(frozen=True)
-class Sidecar:
-    """The loops and motors of a closed-loop URDF (the sidecar file's contents).
-
-    Attributes:
-        path: The sidecar file (None when built in Python).
-        loops: Frame-name pairs that must coincide, one per loop, in file order; empty when the
-            file has no ``closed_loop`` key (the pairs then come from the frame names).
-        types: Per loop, ``"6d"`` or ``"3d"`` (lower case).
-        motors: Motor joint names (``name_mot``); None when the key is missing.
-        joint_types: Joint re-typing from ``joint_name`` / ``joint_type`` (upper case).
-    """
-
-    path: Path | None = None
-    loops: tuple[tuple[str, str], ...] = ()
-    types: tuple[str, ...] = ()
-    motors: tuple[str, ...] | None = None
-    joint_types: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -140,133 +66,6 @@ class TreeCut:
     limbs: tuple[LimbCut, ...]
     beyond_platform: tuple[str, ...] = ()
     locked: tuple[str, ...] = ()
-
-
-# --- sidecar --------------------------------------------------------------------------------
-
-
-def default_sidecar(urdf: Path | str) -> Path:
-    """The sidecar next to ``urdf``: ``<stem>.yaml``, ``.yml`` or ``.toml``, the first that exists.
-
-    Raises:
-        MechanismFormatError: none of them exists.
-    """
-    urdf = Path(urdf)
-    for suffix in SIDECAR_SUFFIXES:
-        cand = urdf.with_suffix(suffix)
-        if cand.is_file():
-            return cand
-    raise MechanismFormatError(
-        urdf.with_suffix(".yaml"),
-        "-",
-        "file not found; a closed-loop URDF needs a sidecar listing its loops and motors "
-        f"({' or '.join(urdf.with_suffix(s).name for s in SIDECAR_SUFFIXES)}; see docs/closed-loop.md)",
-    )
-
-
-def read_sidecar(path: Path | str) -> Sidecar:
-    """Read a sidecar file (YAML as written by example-parallel-robots, or TOML with the same keys).
-
-    YAML is read with PyYAML when it is installed (it comes with meshcat, through pyngrok);
-    without it, the ``key: [python literal]`` lines that example-parallel-robots writes are
-    still understood. A ``.toml`` file is read with the standard library.
-
-    Raises:
-        MechanismFormatError: the file is missing or unreadable, or a key is mistyped.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise MechanismFormatError(path, "-", "file not found; give the sidecar listing the loops and motors")
-    text = path.read_text(encoding="utf-8")
-    if path.suffix == ".toml":
-        try:
-            doc: Any = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as err:
-            raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
-    else:
-        doc = _load_yaml(path, text)
-    if doc is None:
-        doc = {}
-    if not isinstance(doc, dict):
-        raise MechanismFormatError(path, "-", f"expected a mapping of keys, got {type(doc).__name__}")
-    return sidecar_from_dict(doc, path)
-
-
-def sidecar_from_dict(doc: Mapping[str, Any], path: Path | str | None = None) -> Sidecar:
-    """Validate the sidecar keys of ``doc`` (see the module docstring).
-
-    Raises:
-        MechanismFormatError: a key is mistyped or the lists disagree in length.
-    """
-    where = Path(path) if path is not None else Path("<sidecar>")
-    r = _Reader(where, dict(doc))
-    loops: list[tuple[str, str]] = []
-    for k, pair in enumerate(r.get("closed_loop", list, default=[])):
-        if not (isinstance(pair, list | tuple) and len(pair) == 2 and all(isinstance(x, str) for x in pair)):
-            r.fail(f"closed_loop[{k}]", f"expected a pair of frame names, got {pair!r}")
-        loops.append((pair[0], pair[1]))
-    types = _str_list(r, "type", default=["6d"] * len(loops))
-    if len(types) != len(loops):
-        r.fail("type", f"{len(types)} types for {len(loops)} loops; give one type per closed_loop pair")
-    types = [t.lower() for t in types]
-    for k, t in enumerate(types):
-        if t not in ("6d", "3d"):
-            r.fail(f"type[{k}]", f"unknown loop type {t!r}; use '6d' or '3d'")
-    motors = _str_list(r, "name_mot", default=None)
-    names = _str_list(r, "joint_name", default=[])
-    jtypes = _str_list(r, "joint_type", default=[])
-    if len(names) != len(jtypes):
-        r.fail("joint_type", f"{len(jtypes)} types for {len(names)} joint_name entries")
-    return Sidecar(
-        path=None if path is None else Path(path),
-        loops=tuple(loops),
-        types=tuple(types),
-        motors=None if motors is None else tuple(motors),
-        joint_types={n: t.upper() for n, t in zip(names, jtypes, strict=True)},
-    )
-
-
-def _str_list(r: _Reader, key: str, default: Any) -> Any:
-    v = r.get(key, list, default=default)
-    if v is not None and not all(isinstance(x, str) for x in v):
-        r.fail(key, f"expected a list of strings, got {v!r}")
-    return v
-
-
-def _load_yaml(path: Path, text: str) -> Any:
-    try:
-        import yaml
-    except ImportError:
-        return _load_literal_yaml(path, text)
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise MechanismFormatError(path, "-", f"not valid YAML: {err}") from err
-
-
-def _load_literal_yaml(path: Path, text: str) -> dict[str, Any]:
-    """The ``key: [python literal]`` lines example-parallel-robots writes, without PyYAML."""
-    doc: dict[str, Any] = {}
-    for n, line in enumerate(text.splitlines(), 1):
-        body = line.split("#", 1)[0].strip() if not line.lstrip().startswith("#") else ""
-        if not body:
-            continue
-        key, sep, value = body.partition(":")
-        try:
-            if not sep:
-                raise ValueError("no 'key:'")
-            doc[key.strip()] = ast.literal_eval(value.strip())
-        except (ValueError, SyntaxError) as err:
-            raise MechanismFormatError(
-                path,
-                "-",
-                f"line {n}: cannot read {line.strip()!r} without PyYAML ({err}); "
-                "install PyYAML or write the sidecar as TOML with the same keys",
-            ) from err
-    return doc
-
-
-# --- cutting the tree -------------------------------------------------------------------------
 
 
 def load_tree(urdf: Path | str) -> tuple[pin.Model, Any, str]:
@@ -576,9 +375,6 @@ def _loop_name(pair: tuple[str, str], k: int) -> str:
     return stems.pop() if len(stems) == 1 and not pair[0].endswith(pair[1]) else f"loop{k}"
 
 
-# --- serial limb models ------------------------------------------------------------------------
-
-
 def limb_model(
     tree: pin.Model, cut: TreeCut, limb: LimbCut
 ) -> tuple[pin.Model, dict[int, int], dict[int, int]]:
@@ -645,7 +441,7 @@ def _placement_on(tree: pin.Model, frame: str, joint: int) -> pin.SE3:
     return f.placement
 
 
-def _limb_visual(visual: Any, jmap: dict[int, int], fmap: dict[int, int], with_base: bool) -> Any:
+def limb_visual(visual: Any, jmap: dict[int, int], fmap: dict[int, int], with_base: bool) -> Any:
     """The tree's visuals that move with the limb's joints (and the base's, for one limb)."""
     if visual is None:
         return None
@@ -658,170 +454,3 @@ def _limb_visual(visual: Any, jmap: dict[int, int], fmap: dict[int, int], with_b
         g.parentFrame = fmap.get(go.parentFrame, 0)
         gm.addGeometryObject(g)
     return gm
-
-
-# --- the mechanism -----------------------------------------------------------------------------
-
-
-def closed_loop_limbs(
-    urdf: Path | str,
-    sidecar: Path | str | Sidecar | None = None,
-    platform_link: str | None = None,
-    limb_names: Sequence[str] | None = None,
-    home: Mapping[str, float] | None = None,
-) -> tuple[list[Limb], TreeCut]:
-    """Cut a closed-loop URDF into :class:`~pkmtol.mechanism.Limb` objects.
-
-    Args:
-        urdf: The tree URDF.
-        sidecar: The sidecar file (or a :class:`Sidecar`); default: next to the URDF
-            (:func:`default_sidecar`).
-        platform_link: The platform link (default: the link holding one side of every loop).
-        limb_names: Limb names, reference limb first (default ``limb1`` ...).
-        home: Joint values [rad or m] by joint name at which every loop closes (±1 mm, ±1 mrad);
-            joints not named are at 0.
-
-    Returns:
-        ``(limbs, cut)``: the limbs (reference limb first) and how the tree was cut.
-
-    Raises:
-        URDFError, MechanismFormatError, ClosedLoopError (and its subclasses): see
-        :func:`load_tree`, :func:`read_sidecar`, :func:`cut_tree`.
-    """
-    urdf = Path(urdf)
-    if isinstance(sidecar, Sidecar):
-        side = sidecar
-    else:
-        side = read_sidecar(default_sidecar(urdf) if sidecar is None else Path(sidecar))
-    tree, visual, _ = load_tree(urdf)
-    locked = []
-    for jname, jtype in side.joint_types.items():
-        if not tree.existJointName(jname):
-            raise ClosedLoopError(
-                side.path or urdf,
-                jname,
-                f"joint_name '{jname}' is not a joint of the tree (joints: {', '.join(tree.names[1:])})",
-            )
-        if jtype == "FIXED":
-            locked.append(tree.getJointId(jname))
-        else:
-            raise ClosedLoopError(
-                side.path or urdf,
-                jname,
-                f"joint_type {jtype} of '{jname}': pkmtol takes 1-DOF joints only; write a spherical "
-                "joint as three revolutes, a cardan as two",
-            )
-    if locked:
-        if side.motors is not None:
-            motors = set(side.motors)
-        else:
-            motors = {n for n in tree.names[1:] if MOTOR_MARK in n}
-        for j in locked:
-            if tree.names[j] in motors:
-                raise ClosedLoopError(side.path or urdf, tree.names[j], "a motor joint cannot be FIXED")
-        q0 = pin.neutral(tree)
-        if visual is not None:
-            tree, visual = pin.buildReducedModel(tree, visual, locked, q0)
-        else:
-            tree = pin.buildReducedModel(tree, locked, q0)
-    cut = cut_tree(tree, side, platform_link, limb_names, urdf)
-    cut = dataclasses.replace(cut, locked=tuple(side.joint_types))
-    home = dict(home or {})
-    names = set(tree.names[1:])
-    for jname in home:
-        if jname not in names:
-            raise ClosedLoopError(
-                urdf,
-                jname,
-                f"home names joint '{jname}', which is not a joint of the tree "
-                f"(joints: {', '.join(tree.names[1:])})",
-            )
-    limbs = []
-    for i, lc in enumerate(cut.limbs):
-        model, jmap, fmap = limb_model(tree, cut, lc)
-        q_home = [float(home.get(n, 0.0)) for n in lc.joints]
-        limb = _make_limb(
-            lc.name,
-            model,
-            list(lc.actuated),
-            cut.platform_link,
-            q_home,
-            urdf,
-            visual_model=_limb_visual(visual, jmap, fmap, with_base=i == 0),
-        )
-        limbs.append(dataclasses.replace(limb, attach_name=lc.attach_name))
-    return limbs, cut
-
-
-def load_closed_loop(
-    urdf: Path | str,
-    sidecar: Path | str | Sidecar | None = None,
-    *,
-    reference_point_m: Sequence[float],
-    task_space: TaskSpace,
-    name: str | None = None,
-    platform_link: str | None = None,
-    limb_names: Sequence[str] | None = None,
-    home: Mapping[str, float] | None = None,
-    target_m: float = 5e-5,
-    betas: Sequence[float] = DEFAULT_BETAS,
-    design_beta: float = 2.0,
-    description: str = "",
-) -> Mechanism:
-    """Build a mechanism from a closed-loop URDF and its sidecar (the Python twin of ``[closed_loop]``).
-
-    Args:
-        urdf: The tree URDF (closure frames ``closedloop<k>_A`` / ``closedloop<k>_B``).
-        sidecar: The sidecar file or a :class:`Sidecar`; default ``<stem>.yaml``/``.yml``/``.toml``.
-        reference_point_m: P in the platform frame, shape (3,) [m].
-        task_space: Task space of P in K.
-        name: Mechanism name (default: the URDF's file stem).
-        platform_link: The platform link (default: the link holding one side of every loop).
-        limb_names: Limb names, reference limb first (default ``limb1`` ...).
-        home: Joint values [rad or m] by joint name where every loop closes (default 0).
-        target_m: Δλ* [m].
-        betas: β series.
-        design_beta: β of the design case.
-        description: Free text.
-
-    Raises:
-        URDFError, MechanismFormatError, ClosedLoopError: bad tree or sidecar (naming the culprit).
-        PlatformMismatchError: a loop is not closed at ``home``.
-    """
-    urdf = Path(urdf)
-    limbs, _ = closed_loop_limbs(urdf, sidecar, platform_link, limb_names, home)
-    return Mechanism.from_limbs(
-        name or urdf.stem,
-        limbs,
-        reference_point_m,
-        task_space,
-        target_m,
-        betas,
-        design_beta,
-        description=description,
-    )
-
-
-def limbs_from_toml(folder: Path, r: _Reader) -> list[Limb]:
-    """The limbs of a ``mechanism.toml`` whose ``[closed_loop]`` table names a tree URDF.
-
-    Called by :func:`pkmtol.mechanism.load_mechanism`. Keys (docs/closed-loop.md): ``urdf``
-    (required), ``sidecar``, ``platform_link``, ``limbs`` (names), ``home`` (table joint → value).
-    """
-    urdf = folder / r.get("closed_loop.urdf", str)
-    side = r.get("closed_loop.sidecar", str, default=None)
-    names = r.get("closed_loop.limbs", list, default=None)
-    if names is not None and not all(isinstance(x, str) for x in names):
-        r.fail("closed_loop.limbs", f"expected a list of limb names, got {names!r}")
-    home = r.get("closed_loop.home", dict, default={})
-    for jname, value in home.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            r.fail(f"closed_loop.home.{jname}", f"expected a number (rad or m), got {value!r}")
-    limbs, _ = closed_loop_limbs(
-        urdf,
-        None if side is None else folder / side,
-        r.get("closed_loop.platform_link", str, default=None),
-        names,
-        {k: float(v) for k, v in home.items()},
-    )
-    return limbs

@@ -4,9 +4,9 @@ meshcat 0.3's own server (``meshcat.Visualizer()`` / ``meshcat-server``) binds i
 127.0.0.1 but its HTTP/WebSocket file server to every interface (``0.0.0.0`` and ``::``), which
 would publish the scene to the network. This module runs the same bridge with the HTTP server
 bound to 127.0.0.1, and exits by itself when the process that started it is gone (no orphans
-even if that process is killed). :class:`pkmtol.viewer.MeshcatServer` starts and stops it.
+even if that process is killed). :class:`pkmtol.present.viewer.server.MeshcatServer` starts and stops it.
 
-Usage: ``python -m pkmtol.meshcat_server [--parent-pid PID]``; prints ``zmq_url=…`` and
+Usage: ``python -m pkmtol.present.viewer.meshcat_server [--parent-pid PID]``; prints ``zmq_url=…`` and
 ``web_url=…`` on the first two lines of stdout.
 """
 

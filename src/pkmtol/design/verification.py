@@ -18,57 +18,17 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 from scipy import stats
 from tqdm import tqdm
 
-from pkmtol.error_model import ParameterSet
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import ConvergenceError
-from pkmtol.kinematics import ClosedChain, perturbed_limb_models
-from pkmtol.mechanism import Mechanism
-from pkmtol.reliability import grid_norm_moments
-from pkmtol.sweep import Sweep
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.perturbation import perturbed_limb_models
+from pkmtol.model.mechanism import Mechanism
 
 DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
-
-
-@dataclass(frozen=True)
-class PoseSearch:
-    """Result of the sensitive-pose search (η_c ~ N(0, 1) per parameter, SI units).
-
-    Attributes:
-        sigma_sampled_m: Shape (m,): sample standard deviation of Δλ at each grid point [m].
-        sigma_analytic_m: Shape (m,): exact standard deviation of Δλ from the linear map [m].
-        mean_analytic_m: Shape (m,): exact mean of Δλ [m].
-        worst_index: Grid index of the largest sampled σ (the paper's Step 5).
-        worst_index_analytic: Grid index of the largest analytic σ.
-        samples: Number of samples.
-    """
-
-    sigma_sampled_m: np.ndarray
-    sigma_analytic_m: np.ndarray
-    mean_analytic_m: np.ndarray
-    worst_index: int
-    worst_index_analytic: int
-    samples: int
-
-
-def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
-    """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
-    m, _, n = J.shape
-    eta = rng.standard_normal((samples, n))
-    sampled = np.empty(m)
-    for j in range(m):
-        sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
-    moments = grid_norm_moments(J)
-    return PoseSearch(
-        sigma_sampled_m=sampled,
-        sigma_analytic_m=moments[:, 1],
-        mean_analytic_m=moments[:, 0],
-        worst_index=int(np.argmax(sampled)),
-        worst_index_analytic=int(np.argmax(moments[:, 1])),
-        samples=samples,
-    )
 
 
 def sample_errors(distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -248,10 +208,3 @@ def exact_position_error(
     u = pose.q_all[chain.actuated_idx] + sep.correction @ eta
     actual = pchain.forward(u, pose.q_all, offsets)
     return float(np.linalg.norm(actual.p_m - pose.p_m))
-
-
-def pose_error_twist(nominal: pin.SE3, actual: pin.SE3) -> np.ndarray:
-    """Pose error ``$_t = diag(R, R) log6(X_nom⁻¹ X_act)`` in K' (6,) [m, rad]."""
-    d = pin.log6(nominal.actInv(actual)).vector
-    r = nominal.rotation
-    return np.concatenate([r @ d[:3], r @ d[3:]])

@@ -7,12 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pkmtol.allocation import sensitivities
-from pkmtol.error_model import ParameterSet, default_set, parameter_set
-from pkmtol.kinematics import ClosedChain
-from pkmtol.mechanism import Mechanism
-from pkmtol.reliability import grid_norm_moments
-from pkmtol.sweep import Sweep, sweep
+from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
+from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
+from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.mechanism import Mechanism
 
 
 @dataclass(frozen=True, eq=False)

@@ -29,10 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.error_model import ParameterSet, raw_columns_local, to_k_prime
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.twists import raw_columns_local, to_k_prime
 from pkmtol.exceptions import MobilityError, SingularPoseError
-from pkmtol.kinematics import ClosedChain, Pose
-from pkmtol.mechanism import Mechanism
+from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.model.mechanism import Mechanism
 
 #: Relative singular-value threshold for null spaces (reciprocal screws).
 RANK_TOLERANCE = 1e-9

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from pkmtol.error_model import ErrorParameter
+from pkmtol.design.reliability import exact_reliability
+from pkmtol.error_model.parameters import ErrorParameter
 from pkmtol.exceptions import InvalidRequestError
-from pkmtol.reliability import exact_reliability
 from pkmtol.units import display
 
 DEFAULT_COST: dict[str, dict[str, float]] = {

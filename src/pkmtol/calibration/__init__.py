@@ -1,0 +1,1 @@
+"""Stage 4, kinematic calibration: measurement plans, identification on exact kinematics, compensation."""

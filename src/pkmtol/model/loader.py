@@ -1,0 +1,148 @@
+"""``load_mechanism``: a robot folder (``mechanism.toml`` and its limb URDFs) to a :class:`Mechanism`."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from pkmtol.exceptions import MechanismFormatError
+from pkmtol.model.closed_loop import limbs_from_toml
+from pkmtol.model.dh import DHTable
+from pkmtol.model.limb import make_limb
+from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
+from pkmtol.model.reading import TomlReader, load_urdf
+from pkmtol.model.taskspace import TaskSpace
+from pkmtol.units import parse_length
+
+
+def load_mechanism(folder: Path | str) -> Mechanism:
+    """Load ``<folder>/mechanism.toml`` and its limb URDFs.
+
+    Raises:
+        MechanismFormatError: the folder has no mechanism.toml, or a key is missing or mistyped.
+        URDFError: a limb URDF is missing, malformed or unusable.
+        UnknownJointError: an actuated joint is not in its limb.
+        PlatformMismatchError: the limbs' platform frames do not coincide at ``home``.
+    """
+    folder = Path(folder)
+    path = folder / "mechanism.toml"
+    if not folder.is_dir():
+        raise MechanismFormatError(
+            path, "-", f"'{folder}' is not a folder; give a robot folder such as robots/r2rps_ups"
+        )
+    if not path.is_file():
+        raise MechanismFormatError(
+            path, "-", "file not found; a robot folder needs a mechanism.toml (see docs/mechanism-format.md)"
+        )
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
+    r = TomlReader(path, doc)
+    name = r.get("name", str)
+    platform_link = r.get("platform_link", str, default="platform")
+    p_ref = r.vector("reference_point.position_m", 3)
+    kind = r.get("task.kind", str, default="position")
+    if kind != "position":
+        r.fail("task.kind", f"unknown task kind {kind!r}; supported: 'position' (of P)")
+    task_space = read_task_space(r)
+    target = r.get("design.target", (str, float, int), default="0.05 mm")
+    try:
+        target_m = parse_length(target, "design.target")
+    except Exception as err:
+        r.fail("design.target", str(err))
+    betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
+    design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
+    limbs = []
+    if "closed_loop" in doc:
+        # one URDF tree with closure frame pairs (docs/closed-loop.md)
+        limbs = limbs_from_toml(folder, r)
+    limbs_doc = r.get("limbs", list) if "closed_loop" not in doc else []
+    if "closed_loop" not in doc and len(limbs_doc) < 2:
+        r.fail("limbs", "a parallel mechanism needs at least two [[limbs]]")
+    for i, ld in enumerate(limbs_doc):
+        lr = TomlReader(path, ld, prefix=f"limbs[{i}].")
+        lname = lr.get("name", str)
+        urdf = folder / lr.get("urdf", str)
+        actuated = lr.get("actuated", list, default=[])
+        home = lr.get("home", list, default=None)
+        dh = read_dh(lr) if "dh" in ld else None
+        model, visual = load_urdf(lname, urdf)
+        limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
+    return Mechanism.from_limbs(
+        name,
+        limbs,
+        p_ref,
+        task_space,
+        target_m,
+        betas,
+        design_beta,
+        root=folder,
+        description=r.get("description", str, default=""),
+        extra={"cost": r.get("cost", dict, default={})},
+    )
+
+
+def read_task_space(r: TomlReader) -> TaskSpace:
+    """The ``[task_space]`` table: a cylinder grid or an explicit point list (frame K, metres)."""
+    kind = r.get("task_space.kind", str)
+    if kind == "cylinder":
+        z = r.vector("task_space.z_m", 2)
+        rings_f = r.array("task_space.rings")
+        if rings_f.ndim != 1 or np.any(rings_f != np.round(rings_f)):
+            r.fail("task_space.rings", f"expected a list of integers, got {rings_f.tolist()!r}")
+        rings = tuple(int(x) for x in rings_f)
+        radius = float(r.get("task_space.radius_m", (float, int)))
+        layers = int(r.get("task_space.layers", int))
+        if radius <= 0 or layers < 1 or not rings or min(rings) < 1 or z[1] < z[0]:
+            r.fail("task_space", "need radius_m > 0, layers ≥ 1, rings of ≥ 1 point and z_m = [min, max]")
+        return TaskSpace(
+            kind="cylinder",
+            radius_m=radius,
+            z_range_m=(float(z[0]), float(z[1])),
+            layers=layers,
+            rings=rings,
+            center_xy_m=tuple(r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])),  # type: ignore[arg-type]
+        )
+    if kind == "points":
+        pts = r.array("task_space.points_m")
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+            r.fail("task_space.points_m", "need a list of [x, y, z] points in metres")
+        return TaskSpace(kind="points", points_m=pts)
+    r.fail("task_space.kind", f"unknown kind {kind!r}; use 'cylinder' or 'points'")
+    raise AssertionError  # unreachable
+
+
+def read_dh(r: TomlReader) -> DHTable:
+    """A limb's ``[limbs.dh]`` table (angles in degrees in the file, radians in the result)."""
+    types = tuple(r.get("dh.joint_types", list))
+    n = len(types)
+    links = r.array("dh.links")
+    if links.shape != (n + 1, 4):
+        r.fail("dh.links", f"need {n + 1} rows [theta_deg, d_m, a_m, phi_deg] for {n} joints")
+    links = links.copy()
+    links[:, 0] = np.radians(links[:, 0])
+    links[:, 3] = np.radians(links[:, 3])
+    end = r.vector("dh.end", 2)
+    limits = r.array("dh.limits")
+    if limits.shape != (n, 2):
+        r.fail("dh.limits", f"need {n} rows [lower, upper] (deg for R, m for P)")
+    limits = limits.copy()
+    for k, t in enumerate(types):
+        if t == "R":
+            limits[k] = np.radians(limits[k])
+    names = tuple(r.get("dh.joint_names", list))
+    try:
+        return DHTable(
+            links=links,
+            end=(float(end[0]), math.radians(end[1])),
+            joint_types=types,
+            joint_names=names,
+            limits=limits,
+        )  # type: ignore[arg-type]
+    except ValueError as err:
+        r.fail("dh", str(err))
+        raise

@@ -1,0 +1,185 @@
+"""The mechanism: limbs (URDF → ``pin.Model``), actuators, platform, reference point, task space.
+
+A mechanism folder holds ``mechanism.toml`` and one URDF per limb (``docs/mechanism-format.md``).
+Every limb URDF is a serial chain of 1-DOF revolute/prismatic joints from the common base link
+(frame K) to the platform link; the platform link's frame is the platform frame, and all limbs'
+platform frames coincide at the ``home`` configuration given in the TOML (default: all zeros).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.exceptions import PlatformMismatchError, URDFError
+from pkmtol.model.limb import Limb, make_limb
+from pkmtol.model.taskspace import TaskSpace
+
+#: Mismatch allowed between the limbs' platform frames at ``home`` before Newton refines it.
+HOME_TOLERANCE_M = 1e-3
+HOME_TOLERANCE_RAD = 1e-3
+
+DEFAULT_BETAS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Mechanism:
+    """A lower-mobility parallel mechanism and its design targets.
+
+    Attributes:
+        name: Mechanism name.
+        limbs: The limbs; limb 0 is the reference limb of the closure equations.
+        reference_point_m: Position of the reference point P in the platform frame, shape (3,) [m].
+        task_space: Where P must reach (frame K).
+        target_m: Required accuracy Δλ* [m].
+        betas: Reliability indices β of the allocation table.
+        design_beta: The β of the design case.
+        root: Folder the mechanism was loaded from (None if built in Python).
+        description: Free text.
+    """
+
+    name: str
+    limbs: tuple[Limb, ...]
+    reference_point_m: np.ndarray
+    task_space: TaskSpace
+    target_m: float = 5e-5
+    betas: tuple[float, ...] = DEFAULT_BETAS
+    design_beta: float = 2.0
+    root: Path | None = None
+    description: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_joints(self) -> int:
+        """Total number of joints over all limbs."""
+        return sum(limb.nq for limb in self.limbs)
+
+    @property
+    def n_actuators(self) -> int:
+        """Number of actuated joints."""
+        return sum(len(limb.actuated) for limb in self.limbs)
+
+    def limb(self, name: str) -> Limb:
+        """The limb called ``name``."""
+        for limb in self.limbs:
+            if limb.name == name:
+                return limb
+        raise KeyError(f"no limb '{name}' (limbs: {', '.join(x.name for x in self.limbs)})")
+
+    @classmethod
+    def from_models(
+        cls,
+        name: str,
+        models: Sequence[pin.Model],
+        actuated: Sequence[Sequence[str]],
+        platform_frame: str,
+        reference_point_m: Sequence[float],
+        task_space: TaskSpace,
+        limb_names: Sequence[str] | None = None,
+        homes: Sequence[Sequence[float]] | None = None,
+        target_m: float = 5e-5,
+        betas: Sequence[float] = DEFAULT_BETAS,
+        design_beta: float = 2.0,
+    ) -> Mechanism:
+        """Build a mechanism from ``pin.Model`` limbs a user already has.
+
+        Args:
+            name: Mechanism name.
+            models: One serial ``pin.Model`` per limb, all rooted at the same base frame K.
+            actuated: Per limb, names of its actuated joints (at most one each).
+            platform_frame: Name of the platform frame present in every model.
+            reference_point_m: P in the platform frame, shape (3,) [m].
+            task_space: Task space of P in K.
+            limb_names: Names of the limbs (default ``limb1`` ...).
+            homes: Per limb, joint values where all platform frames coincide (default zeros).
+            target_m: Δλ* [m].
+            betas: β series.
+            design_beta: β of the design case.
+        """
+        names = list(limb_names or [f"limb{i + 1}" for i in range(len(models))])
+        limbs = []
+        for i, (lname, model) in enumerate(zip(names, models, strict=True)):
+            home = None if homes is None else homes[i]
+            limbs.append(make_limb(lname, model, list(actuated[i]), platform_frame, home, None))
+        return cls.from_limbs(name, limbs, reference_point_m, task_space, target_m, betas, design_beta)
+
+    @classmethod
+    def from_limbs(
+        cls,
+        name: str,
+        limbs: Sequence[Limb],
+        reference_point_m: Sequence[float] | np.ndarray,
+        task_space: TaskSpace,
+        target_m: float = 5e-5,
+        betas: Sequence[float] = DEFAULT_BETAS,
+        design_beta: float = 2.0,
+        root: Path | None = None,
+        description: str = "",
+        extra: dict[str, Any] | None = None,
+    ) -> Mechanism:
+        """A mechanism from validated limbs, checked: one common root link, closed at ``home``.
+
+        Every constructor of pkmtol (TOML, ``pin.Model`` limbs, closed-loop tree) ends here.
+
+        Raises:
+            URDFError: the limbs start from different root links.
+            PlatformMismatchError: the platform frames do not coincide at ``home``.
+        """
+        mech = cls(
+            name=name,
+            limbs=tuple(limbs),
+            reference_point_m=np.asarray(reference_point_m, dtype=float),
+            task_space=task_space,
+            target_m=float(target_m),
+            betas=tuple(float(b) for b in betas),
+            design_beta=float(design_beta),
+            root=root,
+            description=description,
+            extra=dict(extra or {}),
+        )
+        check_root_links(mech)
+        check_home(mech)
+        return mech
+
+
+def check_home(mech: Mechanism) -> None:
+    """Raise PlatformMismatchError if the platform frames do not coincide at ``home``."""
+    ref = mech.limbs[0]
+    m0 = _platform_placement(ref, ref.home)
+    for limb in mech.limbs[1:]:
+        mi = _platform_placement(limb, limb.home)
+        err = pin.log6(m0.inverse() * mi).vector
+        dist, ang = float(np.linalg.norm(mi.translation - m0.translation)), float(np.linalg.norm(err[3:]))
+        if dist > HOME_TOLERANCE_M or ang > HOME_TOLERANCE_RAD:
+            raise PlatformMismatchError(limb.name, ref.name, dist, ang)
+
+
+def _platform_placement(limb: Limb, q: np.ndarray) -> pin.SE3:
+    data = limb.model.createData()
+    pin.framesForwardKinematics(limb.model, data, q)
+    return data.oMf[limb.platform_frame].copy()
+
+
+def check_root_links(mech: Mechanism) -> None:
+    """Raise URDFError unless every limb starts from the same root link (the base frame K)."""
+    roots = [_root_link(lb.model) for lb in mech.limbs]
+    for lb, root in zip(mech.limbs[1:], roots[1:], strict=True):
+        if root != roots[0]:
+            raise URDFError(
+                lb.name,
+                lb.urdf_path,
+                f"its root link is '{root}' but limb '{mech.limbs[0].name}' starts at '{roots[0]}'; "
+                "every limb must start from the same base link (frame K)",
+            )
+
+
+def _root_link(model: pin.Model) -> str:
+    for f in model.frames:
+        if f.type == pin.FrameType.BODY and f.parentJoint == 0:
+            return str(f.name)
+    return "universe"
