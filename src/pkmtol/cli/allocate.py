@@ -1,0 +1,143 @@
+"""``pkmtol allocate``: the main job — tolerance table, verification, files, figures, 3D page."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pkmtol.design.job import DesignOptions, DesignResult, allocate
+from pkmtol.exceptions import FiguresError
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.tables import check_output_folder, summary_text, write_outputs
+from pkmtol.units import parse_length
+
+
+def add(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``pkmtol allocate`` and its options."""
+    p = subparsers.add_parser(
+        "allocate",
+        help="the main job: tolerance table for a required accuracy and reliability",
+        description="Error model, sensitive-pose search, FOSM tolerance allocation over the β "
+        "series (the paper's Table III), verification by Monte Carlo (linear model and exact "
+        "kinematics) and the traditional method for comparison. Prints the tables and writes "
+        "allocation.json, allocation.csv and allocation.md (and figures) into --out.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument(
+        "--target",
+        default=None,
+        help="required accuracy Δλ* at P, e.g. 0.05mm or 50um (default: mechanism.toml)",
+    )
+    p.add_argument(
+        "--beta",
+        type=float,
+        nargs="+",
+        default=None,
+        help="reliability index of the design (one value) or the whole β series "
+        "(several; the design β is then --design-beta or the mechanism's)",
+    )
+    p.add_argument("--design-beta", type=float, default=None, help="β of the verified design")
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
+    p.add_argument(
+        "--exact-samples",
+        type=int,
+        default=1_000,
+        help="exact-kinematics verification samples per distribution (default 1000)",
+    )
+    p.add_argument(
+        "--verification-poses",
+        type=int,
+        default=2_000,
+        help="distinct random task-space poses of the verification (default 2000)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--method",
+        choices=["fosm", "exact", "cost"],
+        default="fosm",
+        help="fosm: the paper's Eq. 20 (default); exact: equal-effect shape scaled so "
+        "that the exact reliability equals Φ(β); cost: cheapest tolerances with exact "
+        "reliability ≥ Φ(β) at every grid pose",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=["worst", "every", "average"],
+        default="every",
+        help="with --method exact: reach Φ(β) at the worst pose, at every grid pose (default) or on average",
+    )
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="afterwards, serve the 3D scene in meshcat on 127.0.0.1 until Ctrl-C",
+    )
+    p.add_argument(
+        "--html",
+        type=Path,
+        default=None,
+        help="also write the 3D scene as a self-contained HTML page to FILE",
+    )
+    p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
+    p.set_defaults(run=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    mech = load_mechanism(args.robot)
+    target = None if args.target is None else parse_length(args.target, "--target")
+    betas = design_beta = None
+    if args.beta is not None and len(args.beta) == 1:
+        design_beta = args.beta[0]
+    elif args.beta is not None:
+        betas = tuple(args.beta)
+    if args.design_beta is not None:
+        design_beta = args.design_beta
+    opts = DesignOptions(
+        target_m=target,
+        betas=betas,
+        design_beta=design_beta,
+        parameter_set=args.pset,
+        samples=args.samples,
+        verification_poses=args.verification_poses,
+        exact_samples=args.exact_samples,
+        seed=args.seed,
+        method=args.method,
+        criterion=args.criterion,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    out = args.out if args.out is not None else Path("out") / mech.name
+    check_output_folder(out)
+    result = allocate(mech, opts)
+    print(summary_text(result), end="")
+    print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
+    for path in write_outputs(result, out):
+        print(f"wrote {path}")
+    if not args.no_figures:
+        _write_figures(result, out)
+    view(result, args.html, args.view)
+    return 0
+
+
+def _write_figures(result: DesignResult, out: Path) -> None:
+    """Figures next to the tables; without matplotlib, say how to get them and carry on."""
+    from pkmtol.present.figures import write_figures
+
+    try:
+        for path in write_figures(result, out):
+            print(f"wrote {path}")
+    except FiguresError as err:
+        print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
+
+
+def view(result: DesignResult, html: Path | None, live: bool) -> None:
+    """Write the 3D page to ``html`` (if given), then serve the scene live (if ``live``)."""
+    from pkmtol.present.viewer.export import export_html, show
+
+    if html is not None:
+        info = export_html(result, html)
+        spheres = info.scene.spheres
+        print(f"wrote {info.path} ({info.bytes} bytes, {spheres.count if spheres else 0} error spheres)")
+    if live:
+        show(result)
