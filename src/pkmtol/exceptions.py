@@ -36,6 +36,28 @@ class MechanismFormatError(PkmtolError):
         super().__init__(f"{self.path}:{where} {problem}")
 
 
+class UnknownKeyError(MechanismFormatError):
+    """A key of the mechanism description is not one pkmtol reads (misspelt, or in the wrong table).
+
+    Attributes:
+        path: The offending file.
+        key: Dotted key of the unknown entry (e.g. ``design.targte``).
+        known: The keys that table may hold.
+        suggestion: The closest known key (None if nothing is close).
+    """
+
+    def __init__(self, path: Path | str, key: str, known: Sequence[str], suggestion: str | None) -> None:
+        self.known = tuple(sorted(known))
+        self.suggestion = suggestion
+        hint = f"did you mean '{suggestion}'? " if suggestion else ""
+        super().__init__(
+            path,
+            key,
+            f"unknown key; {hint}this table takes {', '.join(self.known) or 'no keys'} "
+            "(docs/mechanism-format.md)",
+        )
+
+
 class URDFError(PkmtolError):
     """A limb URDF is missing, malformed, or does not describe a serial limb pkmtol can use.
 
@@ -49,6 +71,41 @@ class URDFError(PkmtolError):
         self.path = None if path is None else Path(path)
         where = f" ({self.path})" if self.path is not None else ""
         super().__init__(f"limb '{limb}'{where}: {problem}")
+
+
+class DHMismatchError(URDFError):
+    """A limb URDF disagrees with the D–H table it was generated from (``[limbs.dh]``).
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        joint: The first joint (or platform attachment) that differs.
+        what: What differs (``origin``, ``axis``, ``type``, ``name``, ``limits``).
+        difference: Size of the difference (m and rad for an origin, else 0).
+        command: The command that regenerates the URDF from the table.
+    """
+
+    def __init__(
+        self,
+        limb: str,
+        path: Path | str | None,
+        joint: str,
+        what: str,
+        detail: str,
+        command: str,
+        difference: float = 0.0,
+    ) -> None:
+        self.joint = joint
+        self.what = what
+        self.difference = difference
+        self.command = command
+        super().__init__(
+            limb,
+            path,
+            f"joint '{joint}': the URDF's {what} disagrees with the [limbs.dh] table of "
+            f"mechanism.toml ({detail}); regenerate the URDF with `{command}` "
+            "(or fix the table)",
+        )
 
 
 class UnknownJointError(PkmtolError):
@@ -193,12 +250,74 @@ class InvalidRequestError(PkmtolError, ValueError):
     """A numeric request is out of range (non-positive target, beta or sample count, ...)."""
 
 
+class InvalidArgumentError(InvalidRequestError):
+    """An argument of a public function, an option field or a command-line value is wrong.
+
+    Attributes:
+        argument: Name of the argument as the caller wrote it (``target_m``,
+            ``TaskSpace.radius_m``, ``--samples``).
+        value: The value given.
+    """
+
+    def __init__(self, argument: str, value: object, problem: str) -> None:
+        self.argument = argument
+        self.value = value
+        super().__init__(f"{argument} = {_short_repr(value)}: {problem}")
+
+
+class ResourceLimitError(InvalidArgumentError):
+    """A request would need more memory than the machine has; refused before any work starts.
+
+    Attributes:
+        estimate_bytes: Memory the request would need (estimate) [bytes].
+        available_bytes: Memory available [bytes].
+    """
+
+    def __init__(
+        self, argument: str, value: object, estimate_bytes: float, available_bytes: float, hint: str
+    ) -> None:
+        self.estimate_bytes = float(estimate_bytes)
+        self.available_bytes = float(available_bytes)
+        super().__init__(
+            argument,
+            value,
+            f"needs about {_gb(estimate_bytes)} of memory, more than the {_gb(available_bytes)} "
+            f"available; {hint}",
+        )
+
+
+def _gb(n: float) -> str:
+    return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
+
+
+def _short_repr(value: object, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class OutputError(PkmtolError):
     """An output file or folder cannot be written. Nothing has been written when this is raised."""
 
     def __init__(self, path: Path | str, problem: str) -> None:
         self.path = Path(path)
         super().__init__(f"cannot write {self.path}: {problem}")
+
+
+class OutputLockedError(OutputError):
+    """Another pkmtol run is writing into the same output folder.
+
+    Attributes:
+        path: The output folder.
+        pid: Process id of the other run (None if unknown).
+    """
+
+    def __init__(self, path: Path | str, pid: int | None) -> None:
+        self.pid = pid
+        who = f"process {pid}" if pid is not None else "another process"
+        super().__init__(
+            path,
+            f"{who} is writing a run into this folder; wait for it to finish or choose another --out",
+        )
 
 
 def _fmt_mm(p_m: np.ndarray) -> str:
@@ -259,3 +378,32 @@ class ViewerError(PkmtolError):
 
 class FiguresError(PkmtolError):
     """Figures cannot be made: matplotlib is missing (``pip install 'pkmtol[plots]'``)."""
+
+
+# --- warnings -----------------------------------------------------------------------------------
+
+
+class PkmtolWarning(UserWarning):
+    """Base class of pkmtol's warnings: the input is used, but something in it is dropped or odd."""
+
+
+class MissingMeshWarning(PkmtolWarning):
+    """A visual mesh a limb URDF names does not exist: that visual is left out of the 3D scene.
+
+    The accuracy results do not depend on visuals; the warning says which file is missing.
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        mesh: The mesh file name as the URDF gives it.
+    """
+
+    def __init__(self, limb: str, path: Path | str | None, mesh: str) -> None:
+        self.limb = limb
+        self.path = None if path is None else Path(path)
+        self.mesh = mesh
+        where = f" ({self.path})" if self.path is not None else ""
+        super().__init__(
+            f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
+            "(results are not affected); fix the filename or put the mesh next to the URDF"
+        )

@@ -6,6 +6,7 @@ lengths in mm or µm, angles in mrad (DESIGN.md, "Units").
 
 from __future__ import annotations
 
+import math
 import re
 from decimal import Decimal
 
@@ -21,34 +22,48 @@ _NUMBER_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([
 
 
 def parse_length(value: str | float | int, what: str = "length") -> float:
-    """Parse a length such as ``"0.05 mm"``, ``"50um"`` or ``5e-5`` (bare numbers are metres).
+    """Parse a length such as ``"0.05 mm"``, ``"50um"`` or ``"5e-5 m"``; a number is metres.
+
+    Text must carry its unit: ``"50"`` is refused (it could mean 50 m or 50 µm).
 
     Returns:
         The length [m].
 
     Raises:
-        InvalidRequestError: the text is not a number with a known length unit.
+        InvalidRequestError: the text is not a number with a known length unit, or not finite.
 
     >>> parse_length("0.05 mm")
     5e-05
     >>> parse_length("50 um")
     5e-05
     """
-    if isinstance(value, bool):
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
         raise InvalidRequestError(f"{what}: expected a length such as '0.05 mm', got {value!r}")
     if isinstance(value, int | float):
+        if not math.isfinite(value):
+            raise InvalidRequestError(f"{what}: expected a finite length, got {value!r}")
         return float(value)
     m = _NUMBER_UNIT.match(str(value))
     if not m:
         raise InvalidRequestError(f"{what}: cannot read {value!r}; write it as e.g. '0.05 mm' or '50 um'")
     number, unit = m.groups()
-    unit = unit or "m"
+    if not unit:
+        raise InvalidRequestError(
+            f"{what}: {value!r} has no unit; write it with one, e.g. '{number} um' or '{number} mm' "
+            f"(units: {', '.join(LENGTH_UNITS)})"
+        )
     if unit not in LENGTH_UNITS:
         raise InvalidRequestError(
             f"{what}: unknown unit {unit!r} in {value!r}; use one of {', '.join(LENGTH_UNITS)}"
         )
     # decimal scaling, so that "50 um" is the double nearest to 5e-5, not 50 × 1e-6
-    return float(Decimal(number).scaleb(LENGTH_UNITS[unit]))
+    try:
+        result = float(Decimal(number).scaleb(LENGTH_UNITS[unit]))
+    except ArithmeticError:
+        result = math.inf
+    if not math.isfinite(result):
+        raise InvalidRequestError(f"{what}: {value!r} is too large to be a length")
+    return result
 
 
 def display(value_si: float, unit_si: str) -> float:

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.exceptions import UnknownJointError, URDFError
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError, UnknownJointError, URDFError
 from pkmtol.model.dh import DHTable
 
 
@@ -61,6 +62,31 @@ class Limb:
         return tuple(joint_kind(self.model.joints[j].shortname()) for j in range(1, self.model.njoints))
 
 
+def _check_joint_numbers(model: pin.Model, j: int, kind: str, limb: str, path: Path | None) -> None:
+    """Unit axis, finite origin and limits (``lower ≤ upper``) of joint ``j``, else URDFError."""
+    joint = model.joints[j]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(1))
+    s = np.asarray(jdata.S).reshape(6)
+    axis = s[3:] if kind == "R" else s[:3]
+    jname = model.names[j]
+    if not np.all(np.isfinite(s)) or abs(float(np.linalg.norm(axis)) - 1.0) > 1e-6:
+        raise URDFError(
+            limb,
+            path,
+            f"joint '{jname}': its axis {np.round(axis, 9).tolist()} is not a unit vector; give it a "
+            "direction of length 1 (e.g. 0 0 1)",
+        )
+    placement = model.jointPlacements[j]
+    if not (np.all(np.isfinite(placement.translation)) and np.all(np.isfinite(placement.rotation))):
+        raise URDFError(limb, path, f"joint '{jname}': its origin is not finite (nan or inf)")
+    lo, hi = float(model.lowerPositionLimit[j - 1]), float(model.upperPositionLimit[j - 1])
+    if np.isnan(lo) or np.isnan(hi) or lo > hi:
+        raise URDFError(
+            limb, path, f"joint '{jname}': its limits [{lo:g}, {hi:g}] are not a range lower ≤ upper"
+        )
+
+
 def joint_kind(shortname: str) -> str:
     """``"R"`` (bounded revolute), ``"P"`` (prismatic) or ``"?"`` for a Pinocchio joint short name."""
     if shortname.startswith("JointModelR") and "Unbounded" not in shortname and "RUB" not in shortname:
@@ -80,7 +106,19 @@ def make_limb(
     dh: DHTable | None = None,
     visual_model: Any = None,
 ) -> Limb:
-    """Validate a limb model and wrap it (raises URDFError / UnknownJointError)."""
+    """Validate a limb model and wrap it (raises URDFError / UnknownJointError / InvalidArgumentError).
+
+    Checked: every joint is a 1-DOF revolute or prismatic joint with a unit axis, finite origin
+    and limits; the chain does not branch; the platform link is at its end; the actuated names
+    exist (at most one); ``home`` has one finite value per joint.
+    """
+    values.text("limb name", name)
+    if not isinstance(model, pin.Model):
+        raise InvalidArgumentError(f"model of limb '{name}'", model, "expected a pinocchio.Model")
+    actuated = list(values.strings(f"actuated joints of limb '{name}'", actuated))
+    values.text("platform frame", platform_link)
+    if model.njoints < 2:
+        raise URDFError(name, path, "the limb has no moving joint (a limb needs at least one)")
     for j in range(1, model.njoints):
         kind = joint_kind(model.joints[j].shortname())
         if kind == "?" or model.joints[j].nq != 1:
@@ -93,8 +131,7 @@ def make_limb(
             )
         if model.parents[j] != j - 1:
             raise URDFError(name, path, f"joint '{model.names[j]}' branches: a limb must be a serial chain")
-    if model.njoints < 2:
-        raise URDFError(name, path, "the limb has no moving joint")
+        _check_joint_numbers(model, j, kind, name, path)
     if not model.existFrame(platform_link):
         raise URDFError(
             name,
@@ -122,7 +159,7 @@ def make_limb(
     if home is None:
         home_arr = np.zeros(model.nq)
     else:
-        home_arr = np.asarray(home, dtype=float)
+        home_arr = values.array(f"home of limb '{name}'", home)
         if home_arr.shape != (model.nq,):
             raise URDFError(name, path, f"home has {home_arr.size} values for {model.nq} joints")
     return Limb(

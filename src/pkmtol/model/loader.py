@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
-from pkmtol.exceptions import MechanismFormatError
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, MechanismFormatError
 from pkmtol.model.closed_loop import limbs_from_toml
-from pkmtol.model.dh import DHTable
+from pkmtol.model.dh import DHTable, check_dh_matches
+from pkmtol.model.keys import check_keys
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
-from pkmtol.model.reading import TomlReader, load_urdf
-from pkmtol.model.taskspace import TaskSpace
+from pkmtol.model.reading import TomlReader, load_urdf, read_text
+from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
 from pkmtol.units import parse_length
 
 
@@ -22,11 +24,19 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     """Load ``<folder>/mechanism.toml`` and its limb URDFs.
 
     Raises:
-        MechanismFormatError: the folder has no mechanism.toml, or a key is missing or mistyped.
-        URDFError: a limb URDF is missing, malformed or unusable.
+        InvalidArgumentError: ``folder`` is not a path.
+        MechanismFormatError: the folder has no mechanism.toml, or a key is missing, mistyped,
+            not finite (``nan``, ``inf``) or unknown (:class:`UnknownKeyError`, with a "did you
+            mean"; the known keys are in :mod:`pkmtol.model.keys`).
+        URDFError: a limb URDF is missing, malformed or unusable; :class:`DHMismatchError` when it
+            disagrees with the limb's ``[limbs.dh]`` table.
         UnknownJointError: an actuated joint is not in its limb.
         PlatformMismatchError: the limbs' platform frames do not coincide at ``home``.
     """
+    if isinstance(folder, bool) or not isinstance(folder, str | os.PathLike):
+        raise InvalidArgumentError(
+            "folder", folder, "expected the path of a robot folder, e.g. 'robots/r2rps_ups'"
+        )
     folder = Path(folder)
     path = folder / "mechanism.toml"
     if not folder.is_dir():
@@ -37,41 +47,75 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         raise MechanismFormatError(
             path, "-", "file not found; a robot folder needs a mechanism.toml (see docs/mechanism-format.md)"
         )
+    text = read_text(path, lambda problem: MechanismFormatError(path, "-", problem))
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
+    check_keys(path, doc)
     r = TomlReader(path, doc)
     name = r.get("name", str)
+    if not name.strip():
+        r.fail("name", "must not be empty")
     platform_link = r.get("platform_link", str, default="platform")
+    r.get("base_link", str, default="base")
+    r.get("description", str, default="")
     p_ref = r.vector("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
     if kind != "position":
         r.fail("task.kind", f"unknown task kind {kind!r}; supported: 'position' (of P)")
     task_space = read_task_space(r)
     target = r.get("design.target", (str, float, int), default="0.05 mm")
+    if not isinstance(target, str):
+        r.fail(
+            "design.target",
+            f'write the unit with the number, e.g. target = "{target} mm" or "{target} um"',
+        )
     try:
         target_m = parse_length(target, "design.target")
-    except Exception as err:
+    except InvalidRequestError as err:
         r.fail("design.target", str(err))
-    betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
+    if target_m <= 0:
+        r.fail("design.target", f"the required accuracy must be positive, got {target!r}")
+    beta_arr = r.array("design.beta", default=list(DEFAULT_BETAS))
+    if beta_arr.ndim != 1 or beta_arr.size == 0 or np.any(beta_arr <= 0):
+        r.fail("design.beta", f"expected a list of positive numbers, got {beta_arr.tolist()!r}")
+    betas = tuple(float(b) for b in beta_arr)
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
+    if design_beta <= 0:
+        r.fail("design.design_beta", f"β must be positive, got {design_beta!r}")
+    r.get("cost", dict, default={})
     limbs = []
+    if "closed_loop" in doc and "limbs" in doc:
+        r.fail("limbs", "give either [[limbs]] or a [closed_loop] table, not both")
     if "closed_loop" in doc:
         # one URDF tree with closure frame pairs (docs/closed-loop.md)
         limbs = limbs_from_toml(folder, r)
     limbs_doc = r.get("limbs", list) if "closed_loop" not in doc else []
     if "closed_loop" not in doc and len(limbs_doc) < 2:
         r.fail("limbs", "a parallel mechanism needs at least two [[limbs]]")
+    seen: dict[str, int] = {}
     for i, ld in enumerate(limbs_doc):
+        if not isinstance(ld, dict):
+            r.fail(f"limbs[{i}]", "expected a [[limbs]] table")
         lr = TomlReader(path, ld, prefix=f"limbs[{i}].")
         lname = lr.get("name", str)
+        if not lname.strip():
+            lr.fail("name", "must not be empty")
+        if lname in seen:
+            lr.fail("name", f"limb name {lname!r} is also used by limbs[{seen[lname]}]; names must be unique")
+        seen[lname] = i
         urdf = folder / lr.get("urdf", str)
-        actuated = lr.get("actuated", list, default=[])
-        home = lr.get("home", list, default=None)
+        actuated = lr.strings("actuated", default=[])
+        home = lr.array("home") if "home" in ld else None
+        if home is not None and home.ndim != 1:
+            lr.fail("home", f"expected a list of numbers, one per joint, got {ld['home']!r}")
         dh = read_dh(lr) if "dh" in ld else None
         model, visual = load_urdf(lname, urdf)
-        limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
+        limb = make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual)
+        if dh is not None:
+            check_dh_matches(limb, dh, f"python scripts/dh_to_urdf.py {folder}")
+        limbs.append(limb)
     return Mechanism.from_limbs(
         name,
         limbs,
@@ -90,27 +134,44 @@ def read_task_space(r: TomlReader) -> TaskSpace:
     """The ``[task_space]`` table: a cylinder grid or an explicit point list (frame K, metres)."""
     kind = r.get("task_space.kind", str)
     if kind == "cylinder":
+        for key in ("points_m",):
+            if key in r.get("task_space", dict):
+                r.fail(f"task_space.{key}", "belongs to kind = 'points', not 'cylinder'; remove it")
         z = r.vector("task_space.z_m", 2)
         rings_f = r.array("task_space.rings")
-        if rings_f.ndim != 1 or np.any(rings_f != np.round(rings_f)):
-            r.fail("task_space.rings", f"expected a list of integers, got {rings_f.tolist()!r}")
+        whole = rings_f.ndim == 1 and rings_f.size > 0 and np.all(rings_f == np.round(rings_f))
+        if not whole or np.any(rings_f < 1):
+            r.fail("task_space.rings", f"expected a list of integers ≥ 1, got {rings_f.tolist()!r}")
         rings = tuple(int(x) for x in rings_f)
         radius = float(r.get("task_space.radius_m", (float, int)))
+        if radius <= 0:
+            r.fail("task_space.radius_m", f"the cylinder radius must be > 0, got {radius!r}")
         layers = int(r.get("task_space.layers", int))
-        if radius <= 0 or layers < 1 or not rings or min(rings) < 1 or z[1] < z[0]:
-            r.fail("task_space", "need radius_m > 0, layers ≥ 1, rings of ≥ 1 point and z_m = [min, max]")
+        if layers < 1:
+            r.fail("task_space.layers", f"need at least 1 layer, got {layers!r}")
+        if z[1] < z[0]:
+            r.fail("task_space.z_m", f"write it as [z_min, z_max], got {z.tolist()!r}")
+        center = r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])
+        if layers * (1 + sum(rings)) > MAX_GRID_POINTS:
+            n = layers * (1 + sum(rings))
+            r.fail("task_space", f"{n} grid points; at most {MAX_GRID_POINTS} are allowed")
         return TaskSpace(
             kind="cylinder",
             radius_m=radius,
             z_range_m=(float(z[0]), float(z[1])),
             layers=layers,
             rings=rings,
-            center_xy_m=tuple(r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])),  # type: ignore[arg-type]
+            center_xy_m=(float(center[0]), float(center[1])),
         )
     if kind == "points":
+        for key in ("radius_m", "z_m", "layers", "rings", "center_xy_m"):
+            if key in r.get("task_space", dict):
+                r.fail(f"task_space.{key}", "belongs to kind = 'cylinder', not 'points'; remove it")
         pts = r.array("task_space.points_m")
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             r.fail("task_space.points_m", "need a list of [x, y, z] points in metres")
+        if len(pts) > MAX_GRID_POINTS:
+            r.fail("task_space.points_m", f"{len(pts)} points; at most {MAX_GRID_POINTS} are allowed")
         return TaskSpace(kind="points", points_m=pts)
     r.fail("task_space.kind", f"unknown kind {kind!r}; use 'cylinder' or 'points'")
     raise AssertionError  # unreachable
@@ -118,7 +179,10 @@ def read_task_space(r: TomlReader) -> TaskSpace:
 
 def read_dh(r: TomlReader) -> DHTable:
     """A limb's ``[limbs.dh]`` table (angles in degrees in the file, radians in the result)."""
-    types = tuple(r.get("dh.joint_types", list))
+    types = tuple(r.strings("dh.joint_types"))
+    bad = [t for t in types if t not in ("R", "P")]
+    if bad or not types:
+        r.fail("dh.joint_types", f"expected a list of 'R' and 'P', one per joint, got {list(types)!r}")
     n = len(types)
     links = r.array("dh.links")
     if links.shape != (n + 1, 4):
@@ -130,19 +194,22 @@ def read_dh(r: TomlReader) -> DHTable:
     limits = r.array("dh.limits")
     if limits.shape != (n, 2):
         r.fail("dh.limits", f"need {n} rows [lower, upper] (deg for R, m for P)")
+    if np.any(limits[:, 0] > limits[:, 1]):
+        k = int(np.flatnonzero(limits[:, 0] > limits[:, 1])[0])
+        r.fail("dh.limits", f"row {k + 1} is reversed: lower {limits[k, 0]:g} > upper {limits[k, 1]:g}")
     limits = limits.copy()
     for k, t in enumerate(types):
         if t == "R":
             limits[k] = np.radians(limits[k])
-    names = tuple(r.get("dh.joint_names", list))
-    try:
-        return DHTable(
-            links=links,
-            end=(float(end[0]), math.radians(end[1])),
-            joint_types=types,
-            joint_names=names,
-            limits=limits,
-        )  # type: ignore[arg-type]
-    except ValueError as err:
-        r.fail("dh", str(err))
-        raise
+    names = tuple(r.strings("dh.joint_names"))
+    if len(names) != n:
+        r.fail("dh.joint_names", f"{len(names)} names for {n} joint_types; give one name per joint")
+    if len(set(names)) != n:
+        r.fail("dh.joint_names", f"names must be unique, got {list(names)!r}")
+    return DHTable(
+        links=links,
+        end=(float(end[0]), math.radians(end[1])),
+        joint_types=types,
+        joint_names=names,
+        limits=limits,
+    )
