@@ -131,7 +131,7 @@ def test_same_seed_same_bytes(mech):
         ({"target_m": -1e-5}, "Δλ* must be positive"),
         ({"betas": (1.0, -2.0)}, "β must be positive"),
         ({"design_beta": 0.0}, "β must be positive"),
-        ({"samples": 0}, "samples must be an integer ≥ 1"),
+        ({"samples": 0}, "samples = 0: must be ≥ 2"),
     ],
 )
 def test_bad_requests(mech, kwargs, needle):
@@ -155,7 +155,7 @@ def test_unwritable_output_leaves_nothing(mech, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
     out = tmp_path / "ok"
     written = write_outputs(r, out)
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in written)
+    assert sorted(p.name for p in out.iterdir()) == sorted([p.name for p in written] + ["pkmtol-run.json"])
 
 
 def test_fosm_tolerance_formula():

@@ -7,7 +7,7 @@ programmatically.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +46,7 @@ class UnknownKeyError(MechanismFormatError):
         suggestion: The closest known key (None if nothing is close).
     """
 
-    def __init__(self, path: Path | str, key: str, known: Sequence[str], suggestion: str | None) -> None:
+    def __init__(self, path: Path | str, key: str, known: Iterable[str], suggestion: str | None) -> None:
         self.known = tuple(sorted(known))
         self.suggestion = suggestion
         hint = f"did you mean '{suggestion}'? " if suggestion else ""
@@ -262,7 +262,21 @@ class InvalidArgumentError(InvalidRequestError):
     def __init__(self, argument: str, value: object, problem: str) -> None:
         self.argument = argument
         self.value = value
-        super().__init__(f"{argument} = {_short_repr(value)}: {problem}")
+        self.problem = problem
+        super().__init__(_argument_message(argument, value, problem))
+
+    def renamed(self, argument: str) -> InvalidArgumentError:
+        """The same error naming the argument as ``argument`` (e.g. the option ``--samples``)."""
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new.argument = argument
+        new.args = (_argument_message(argument, self.value, self.problem),)
+        return new
+
+
+def _argument_message(argument: str, value: object, problem: str) -> str:
+    shown = f"{argument} {value}" if argument.startswith("--") else f"{argument} = {_short_repr(value)}"
+    return f"{shown}: {problem}"
 
 
 class ResourceLimitError(InvalidArgumentError):
@@ -287,6 +301,8 @@ class ResourceLimitError(InvalidArgumentError):
 
 
 def _gb(n: float) -> str:
+    if n >= 1e12:
+        return f"{n / 1e12:,.3g} TB" if n < 1e15 else f"{n / 1e12:,.0f} TB"
     return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
 
 

@@ -17,6 +17,8 @@ LENGTH_UNITS = {"m": 0, "mm": -3, "um": -6, "µm": -6, "μm": -6}
 
 #: Display scale of each SI unit in tables: (factor from SI, display unit).
 DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+#: The table unit systems (``--units``): ``mm`` (mm and mrad, the default) or ``um`` (µm, µrad).
+DISPLAY_UNITS = {"mm": DISPLAY, "um": {"m": (1e6, "µm"), "rad": (1e6, "µrad")}}
 
 _NUMBER_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµμ]*)\s*$")
 
@@ -66,11 +68,21 @@ def parse_length(value: str | float | int, what: str = "length") -> float:
     return result
 
 
-def display(value_si: float, unit_si: str) -> float:
-    """Convert an SI value of unit ``"m"`` or ``"rad"`` to its display unit (mm, mrad)."""
-    return value_si * DISPLAY[unit_si][0]
+def display(value_si: float, unit_si: str, units: str = "mm") -> float:
+    """Convert an SI value of unit ``"m"`` or ``"rad"`` to its display unit (``units``: mm or um).
+
+    >>> display(5e-5, "m"), display(5e-5, "m", "um")
+    (0.05, 50.0)
+    """
+    return value_si * _system(units)[unit_si][0]
 
 
-def display_unit(unit_si: str) -> str:
-    """The display unit (``"mm"`` or ``"mrad"``) of an SI unit."""
-    return DISPLAY[unit_si][1]
+def display_unit(unit_si: str, units: str = "mm") -> str:
+    """The display unit (``"mm"``/``"mrad"``, or ``"µm"``/``"µrad"``) of an SI unit."""
+    return _system(units)[unit_si][1]
+
+
+def _system(units: str) -> dict[str, tuple[float, str]]:
+    if units not in DISPLAY_UNITS:
+        raise InvalidRequestError(f"units: unknown table units {units!r}; use {' or '.join(DISPLAY_UNITS)}")
+    return DISPLAY_UNITS[units]

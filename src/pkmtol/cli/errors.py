@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pkmtol.cli.common import mm, show_progress
 from pkmtol.error_model.sweep import CLASSES
 from pkmtol.error_model.table import error_table
+from pkmtol.exceptions import OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import overconstraint_lines, text_table
@@ -30,19 +32,22 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         help="parameter set (default: dh when every limb has a D–H table, else urdf)",
     )
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    table = error_table(load_mechanism(args.robot), args.pset)
+    mech = load_mechanism(args.robot)
+    if args.json is not None and not (args.json.parent or Path(".")).is_dir():
+        raise OutputError(args.json, f"folder {args.json.parent} does not exist")
+    table = error_table(mech, args.pset, progress=show_progress(args.no_progress))
     text = table.to_json()  # rendered before anything is printed or written
-    wp = table.worst_point_m * 1e3
     counts = {c: table.classes.count(c) for c in CLASSES}
     print(
         f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
         + ", ".join(f"{counts[c]} {c}" for c in CLASSES)
     )
-    print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
+    print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition
@@ -51,8 +56,9 @@ def _run(args: argparse.Namespace) -> int:
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True
     ):
+        # the unit of the sensitivities (P's displacement per unit error), not of the error itself
         unit = "µm/µm" if p.unit == "m" else "µm/µrad"
-        rows.append([p.name, p.unit, c, f"{s:.4f} {unit}", f"{su:.4f} {unit}"])
+        rows.append([p.name, unit, c, f"{s:.4f}", f"{su:.4f}"])
     print(text_table(rows))
     if args.json is not None:
         write_atomic(args.json, text.encode())

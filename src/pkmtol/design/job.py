@@ -13,16 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pkmtol.design.budget import check_memory
 from pkmtol.design.cost import cost_model, cost_optimal
 from pkmtol.design.exact import CRITERIA, ClaimRow, claimed_vs_true, scale_design
 from pkmtol.design.fosm import check_design, fosm_tolerances
+from pkmtol.design.options import check_options
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
 from pkmtol.design.reliability import reliability_fosm
 from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify
 from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.sweep import Sweep, sweep
-from pkmtol.exceptions import InvalidRequestError
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
@@ -63,6 +65,10 @@ class DesignOptions:
     method: str = "fosm"
     criterion: str = "every"
     claim_poses: int = 300
+
+    def __post_init__(self) -> None:
+        """Check every field (raises InvalidArgumentError naming it); betas become a tuple."""
+        check_options(self)
 
 
 @dataclass(frozen=True)
@@ -170,10 +176,21 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     """Run the main job on a mechanism.
 
     Raises:
+        InvalidArgumentError: ``mechanism`` or ``options`` of the wrong type.
+        ResourceLimitError: the run would not fit in memory (:mod:`pkmtol.design.budget`).
         InvalidRequestError: non-positive target, β, or sample counts.
         pkmtol.exceptions.KinematicsError: a task-space point is unreachable or singular.
     """
+    if not isinstance(mechanism, Mechanism):
+        raise InvalidArgumentError(
+            "mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism, from_models)"
+        )
+    if options is not None and not isinstance(options, DesignOptions):
+        raise InvalidArgumentError(
+            "options", options, "expected a pkmtol.DesignOptions, e.g. DesignOptions(samples=2000)"
+        )
     opt = options or DesignOptions()
+    check_memory(mechanism, opt)  # refuse up front what would not fit (ResourceLimitError)
     target = mechanism.target_m if opt.target_m is None else opt.target_m
     betas = tuple(mechanism.betas if opt.betas is None else opt.betas)
     design_beta = mechanism.design_beta if opt.design_beta is None else opt.design_beta

@@ -101,7 +101,7 @@ def make_limb(
     model: pin.Model,
     actuated: list[str],
     platform_link: str,
-    home: Sequence[float] | None,
+    home: Sequence[float] | np.ndarray | None,
     path: Path | None,
     dh: DHTable | None = None,
     visual_model: Any = None,
