@@ -56,8 +56,11 @@ def plan_csv(mechanism: Mechanism, commands: np.ndarray, points_m: np.ndarray) -
         ["pose"] + [f"{c} [{'mm' if k == 'P' else 'deg'}]" for c, k in cols] + [f"P_{a} [mm]" for a in "xyz"]
     )
     for i, (u, p) in enumerate(zip(commands, points_m, strict=True)):
-        vals = [_fmt(v * (1e3 if k == "P" else 180.0 / math.pi)) for v, (_, k) in zip(u, cols, strict=True)]
-        w.writerow([i] + vals + [_fmt(1e3 * x) for x in p])
+        vals = [
+            f"{v * (1e3 if k == 'P' else 180.0 / math.pi) + 0.0:.6f}"
+            for v, (_, k) in zip(u, cols, strict=True)
+        ]
+        w.writerow([i] + vals + [f"{1e3 * x + 0.0:.4f}" for x in p])
     return buf.getvalue()
 
 
