@@ -423,3 +423,32 @@ class MissingMeshWarning(PkmtolWarning):
             f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
             "(results are not affected); fix the filename or put the mesh next to the URDF"
         )
+
+
+# --- calibration ------------------------------------------------------------------------------
+
+
+class CalibrationError(PkmtolError):
+    """Base class of calibration failures (plan, measurements, identification)."""
+
+
+class IdentificationError(CalibrationError):
+    """The identification cannot proceed: the model cannot be solved at a pose, or no step helps."""
+
+
+class MeasurementFileError(CalibrationError):
+    """A measurement or plan file is malformed: a column, a unit, a value or a row is wrong.
+
+    Attributes:
+        path: The file.
+        line: 1-based line of the culprit (0 for the header or the whole file).
+        column: The column at fault ("" when the whole row or file is).
+    """
+
+    def __init__(self, path: Path | str, line: int, column: str, problem: str) -> None:
+        self.path = Path(path)
+        self.line = line
+        self.column = column
+        where = f" line {line}" if line else ""
+        col = f" column '{column}'" if column else ""
+        super().__init__(f"{self.path}:{where}{col}: {problem}")

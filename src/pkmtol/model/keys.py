@@ -41,6 +41,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "limbs",
             "closed_loop",
             "cost",
+            "calibration",
         }
     ),
     "reference_point": frozenset({"position_m"}),
@@ -56,6 +57,21 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
     "cost.angle": _COST_FIELDS,
     "cost.parameters": ANY,
     "cost.parameters.*": _COST_FIELDS,
+    # read by pkmtol.calibration.settings (its TABLE_KEYS; tests/test_errors_doc.py keeps them equal)
+    "calibration": frozenset(
+        {
+            "targets_m",
+            "noise",
+            "poses",
+            "selection",
+            "controller",
+            "prior",
+            "rank_tolerance",
+            "candidates",
+            "manufacturing_length",
+            "manufacturing_angle",
+        }
+    ),
 }
 
 

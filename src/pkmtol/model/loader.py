@@ -126,7 +126,10 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         design_beta,
         root=folder,
         description=r.get("description", str, default=""),
-        extra={"cost": r.get("cost", dict, default={})},
+        extra={
+            "cost": r.get("cost", dict, default={}),
+            "calibration": r.get("calibration", dict, default={}),
+        },
     )
 
 

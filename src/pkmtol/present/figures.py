@@ -16,7 +16,6 @@ left alone, so this works headless and inside notebooks alike.
 
 from __future__ import annotations
 
-import io
 import math
 import re
 from collections.abc import Sequence
@@ -28,6 +27,7 @@ import numpy as np
 from pkmtol.design.job import DesignResult
 from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
+from pkmtol.present.plotting import new_figure, render, require_matplotlib
 
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
@@ -55,32 +55,6 @@ _GREEK = {
 }
 
 
-def _mpl() -> tuple[Any, Any]:
-    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do.
-
-    Every matplotlib module the figures use is imported here, so that a missing (or broken)
-    matplotlib fails before anything is drawn.
-    """
-    try:
-        import matplotlib.lines  # noqa: F401 - used by the figures
-        import matplotlib.patches  # noqa: F401
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError as err:
-        raise FiguresError(
-            f"the figures need matplotlib, which is not installed ({err}); install it with "
-            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`), or pass --no-figures"
-        ) from err
-    return Figure, FigureCanvasAgg
-
-
-def _new_figure(size: tuple[float, float]) -> Any:
-    figure_cls, canvas_cls = _mpl()
-    fig = figure_cls(figsize=size, layout="constrained")
-    canvas_cls(fig)
-    return fig
-
-
 def tex_name(name: str) -> str:
     """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``).
 
@@ -97,13 +71,13 @@ def _unit_colour(unit: str) -> str:
 
 def sensitivity_figure(result: DesignResult) -> Any:
     """Bars of the sensitivities ``ω_i = ‖J[:, i]‖`` of η_c at the design point (Fig. 8)."""
-    _mpl()
+    require_matplotlib()
     from matplotlib.patches import Patch
 
     unc = np.asarray(result.uncompensatable, dtype=int)
     params = [result.pset.parameters[i] for i in unc]
     values = np.asarray(result.sensitivity, dtype=float)[unc]
-    fig = _new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
+    fig = new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     colours = [_unit_colour(p.unit) for p in params]
@@ -130,7 +104,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
 
 def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins: int = HISTOGRAM_BINS) -> Any:
     """Histogram of the verification's Δλ with the Δλ* line and the failure fraction (Fig. 10)."""
-    _mpl()
+    require_matplotlib()
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -147,7 +121,7 @@ def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins:
     edges = np.linspace(0.0, hi, bins + 1)
     counts, _ = np.histogram(dl, edges)
     centres = (edges[:-1] + edges[1:]) / 2
-    fig = _new_figure((7.0, 4.2))
+    fig = new_figure((7.0, 4.2))
     ax = fig.add_subplot()
     colours = [FAILED_COLOUR if c > target else SAFE_COLOUR for c in centres]
     ax.bar(centres, counts, width=np.diff(edges), color=colours, edgecolor="black", linewidth=0.3)
@@ -207,7 +181,7 @@ def tolerance_figure(result: DesignResult) -> Any:
         zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(), strict=True)
     )
     trad = np.array([trad_of.get(int(i), math.nan) for i in unc], dtype=float) * 1e6
-    fig = _new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
+    fig = new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     w = 0.4
@@ -261,17 +235,6 @@ def tolerance_figure(result: DesignResult) -> Any:
     return fig
 
 
-def _render(fig: Any, fmt: str, dpi: int) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(
-        buf,
-        format=fmt,
-        dpi=dpi,
-        metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
-    )
-    return buf.getvalue()
-
-
 def make_figures(result: DesignResult) -> dict[str, Any]:
     """Draw the three figures, by file stem (see :data:`FIGURES`)."""
     return {
@@ -293,12 +256,12 @@ def render_figures(
     bad = [f for f in formats if f not in ("png", "svg", "pdf")]
     if bad or not formats or isinstance(formats, str):
         raise InvalidRequestError(f"figure formats must be png, svg or pdf, got {list(formats)}")
-    _mpl()
+    require_matplotlib()
     rendered: dict[str, bytes] = {}
     try:
         for stem, fig in make_figures(result).items():
             for fmt in formats:
-                rendered[f"{stem}.{fmt}"] = _render(fig, fmt, dpi)
+                rendered[f"{stem}.{fmt}"] = render(fig, fmt, dpi)
     except (ValueError, RuntimeError) as err:  # e.g. a label matplotlib cannot typeset
         raise FiguresError(f"matplotlib cannot draw the figures: {err}") from err
     return rendered
