@@ -235,6 +235,24 @@ class SingularPoseError(KinematicsError):
         )
 
 
+class RobotCheckError(KinematicsError):
+    """A generated robot does not pass ``pkmtol check`` with the dimensions given (nothing is written).
+
+    Attributes:
+        family: The mechanism family.
+        problems: What the check found (unreachable points, wrong mobility).
+    """
+
+    def __init__(self, family: str, problems: Sequence[str]) -> None:
+        self.family = family
+        self.problems = tuple(problems)
+        super().__init__(
+            f"the {family} with these dimensions does not pass `pkmtol check`: {'; '.join(self.problems)}; "
+            "change the dimensions, the strokes (--leg-stroke) or the task space (--task-radius, --task-z); "
+            "nothing was written"
+        )
+
+
 class MobilityError(KinematicsError):
     """The actuation and constraint wrenches do not span 6 dimensions, or an actuator cannot act.
 

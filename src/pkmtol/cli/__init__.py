@@ -20,12 +20,12 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from pkmtol import __version__
-from pkmtol.cli import allocate, calibrate, check, errors, show
+from pkmtol.cli import allocate, calibrate, check, errors, new, show
 from pkmtol.cli.common import EXIT_ERROR
 from pkmtol.exceptions import PkmtolError, PkmtolWarning
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
-SUBCOMMANDS = (check, errors, allocate, calibrate, show)
+SUBCOMMANDS = (check, errors, allocate, calibrate, show, new)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
