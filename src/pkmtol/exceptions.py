@@ -102,9 +102,8 @@ class DHMismatchError(URDFError):
         super().__init__(
             limb,
             path,
-            f"joint '{joint}': the URDF's {what} disagrees with the [limbs.dh] table of "
-            f"mechanism.toml ({detail}); regenerate the URDF with `{command}` "
-            "(or fix the table)",
+            f"joint '{joint}': {what} in the URDF and in the [limbs.dh] table of mechanism.toml "
+            f"differ ({detail}); regenerate the URDF with `{command}` (or fix the table)",
         )
 
 
@@ -144,8 +143,8 @@ class PlatformMismatchError(PkmtolError):
         super().__init__(
             f"limb '{limb}': its platform frame cannot be made to coincide with limb "
             f"'{reference}' (closest mismatch {distance_m * 1e3:.3g} mm, {angle_rad:.3g} rad); "
-            "check that every limb URDF ends in the same platform link placed at the same "
-            "platform frame"
+            "check the limbs' home values in mechanism.toml, and that every limb URDF ends in the "
+            "same platform link placed at the same platform frame"
         )
 
 

@@ -38,12 +38,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit code: 0 on success, 1 if a check found problems, 2 on a pkmtol error.
 
     """
-    args = _parser().parse_args(argv)
     with warnings.catch_warnings():
         warnings.simplefilter("always", PkmtolWarning)
         warnings.showwarning = _show_warning
         try:
-            return int(args.run(args))
+            return run(argv)
         except PkmtolError as err:
             print(f"pkmtol: error: {err}", file=sys.stderr)
             return EXIT_ERROR
@@ -57,6 +56,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BrokenPipeError:  # output piped into `head` and closed early
             sys.stderr.close()
             return 0
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Run the command line like :func:`main`, but let a :class:`~pkmtol.exceptions.PkmtolError` propagate.
+
+    For callers (and tests) that want the exception itself rather than its printed message.
+    """
+    args = _parser().parse_args(argv)
+    return int(args.run(args))
 
 
 def _show_warning(

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from pkmtol.cli.common import named_as_options, show_progress, target_option
+from pkmtol.cli.common import OPTION_OF_FIELD, named_as_options, show_progress, target_option
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, OutputError
@@ -121,7 +121,9 @@ def _run(args: argparse.Namespace) -> int:
             args.criterion,
             f"only --method exact reads it; --method {args.method} would ignore it",
         )
-    with named_as_options():
+    # one --beta value is the design β: name it as typed
+    names = {**OPTION_OF_FIELD, "design_beta": "--design-beta" if args.design_beta is not None else "--beta"}
+    with named_as_options(names):
         opts = DesignOptions(
             target_m=target,
             betas=betas,

@@ -208,7 +208,7 @@ def _sequence(name: str, items: Any, kind: type, what: str) -> list[Any]:
         raise InvalidArgumentError(name, items, f"expected a list of {what}")
     for i, item in enumerate(items):
         if not isinstance(item, kind):
-            raise InvalidArgumentError(f"{name}[{i}]", item, f"expected a {kind.__name__}")
+            raise InvalidArgumentError(f"{name}[{i}]", item, f"expected one of the {what}")
     return list(items)
 
 
