@@ -26,6 +26,13 @@ import pkmtol
 DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 #: Modules whose public names are documented besides ``pkmtol.__all__`` (imported from the module).
 EXTRA_MODULES = (
+    "pkmtol.values",
+    "pkmtol.model.keys",
+    "pkmtol.model.families",
+    "pkmtol.model.robot_files",
+    "pkmtol.kinematics.robot_folder",
+    "pkmtol.design.budget",
+    "pkmtol.present.run_folder",
     "pkmtol.model.sidecar",
     "pkmtol.model.tree_cut",
     "pkmtol.model.closed_loop",
@@ -42,6 +49,8 @@ EXTRA_MODULES = (
 )
 #: Section order: the pipeline (docs/architecture.md), then presentation, then errors.
 MODULE_ORDER = (
+    "pkmtol.values",
+    "pkmtol.model.keys",
     "pkmtol.model.limb",
     "pkmtol.model.mechanism",
     "pkmtol.model.loader",
@@ -49,8 +58,11 @@ MODULE_ORDER = (
     "pkmtol.model.tree_cut",
     "pkmtol.model.closed_loop",
     "pkmtol.model.taskspace",
+    "pkmtol.model.families",
+    "pkmtol.model.robot_files",
     "pkmtol.kinematics.closed_chain",
     "pkmtol.kinematics.perturbation",
+    "pkmtol.kinematics.robot_folder",
     "pkmtol.error_model.parameters",
     "pkmtol.error_model.accuracy",
     "pkmtol.error_model.separation",
@@ -62,8 +74,10 @@ MODULE_ORDER = (
     "pkmtol.design.reliability",
     "pkmtol.design.exact",
     "pkmtol.design.cost",
+    "pkmtol.design.budget",
     "pkmtol.design.job",
     "pkmtol.present.tables",
+    "pkmtol.present.run_folder",
     "pkmtol.present.viewer.options",
     "pkmtol.present.viewer.colours",
     "pkmtol.present.viewer.geometry",

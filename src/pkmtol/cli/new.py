@@ -7,7 +7,7 @@ from pathlib import Path
 
 from pkmtol.cli.common import show_progress
 from pkmtol.kinematics.robot_folder import new_robot
-from pkmtol.model.families import FAMILIES
+from pkmtol.model.families import FAMILIES, SUMMARY
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -23,9 +23,13 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "and passes `pkmtol check` (mobility, every task-space point reachable within the limits).",
     )
     families = p.add_subparsers(dest="family", required=True, metavar="family")
-    for family, (fn, dims) in FAMILIES.items():
-        doc = (fn.__doc__ or "").strip().splitlines()[0]
-        f = families.add_parser(family, help=doc, description=doc)
+    for family, (_, dims) in FAMILIES.items():
+        doc = SUMMARY[family]
+        f = families.add_parser(
+            family,
+            help=doc,
+            description=f"{doc}. Dimensions not given keep the bundled robots/{family} values.",
+        )
         for d in dims:
             option = "--" + d.name.replace("_", "-")
             if isinstance(d.default, tuple):

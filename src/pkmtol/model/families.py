@@ -453,6 +453,14 @@ def _limits_si(axes: Sequence[Axis], limits_user: Sequence[Sequence[float]]) -> 
     ]
 
 
+#: One line per family, for ``pkmtol new --help``.
+SUMMARY = {
+    "tricept": "Tricept 3-UPS&UP: three actuated UPS legs around a passive central UP limb",
+    "sprint_z3": "Sprint Z3 head 3-PRS: three actuated sliders on parallel rails, R then S",
+    "exechon": "Exechon 2-UPR&SPR: two UPR legs sharing their first U axis, one SPR leg",
+    "r2rps_ups": "the paper's R(2-RPS&RP)&UPS (the seed robot): one UPS and two RPS legs, a passive UP limb",
+}
+
 #: The families: name → (function, its dimensions with defaults).
 FAMILIES: dict[str, tuple[Callable[..., RobotDraft], tuple[Dimension, ...]]] = {}
 

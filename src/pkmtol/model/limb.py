@@ -132,7 +132,10 @@ def make_limb(
         if model.parents[j] != j - 1:
             raise URDFError(name, path, f"joint '{model.names[j]}' branches: a limb must be a serial chain")
         _check_joint_numbers(model, j, kind, name, path)
-    if not model.existFrame(platform_link):
+    bodies = [
+        i for i, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.name == platform_link
+    ]
+    if not bodies:
         raise URDFError(
             name,
             path,
@@ -140,7 +143,7 @@ def make_limb(
             + ", ".join(f.name for f in model.frames if f.type == pin.FrameType.BODY)
             + ")",
         )
-    fid = model.getFrameId(platform_link)
+    fid = bodies[0]
     if model.frames[fid].parentJoint != model.njoints - 1:
         raise URDFError(name, path, f"platform link '{platform_link}' is not at the end of the chain")
     joint_names = list(model.names[1:])

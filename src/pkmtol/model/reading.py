@@ -89,16 +89,18 @@ def build_model(limb: str, path: Path, text: str) -> tuple[pin.Model, ET.Element
     return model, root
 
 
-def build_visuals(model: pin.Model, root: ET.Element, limb: str, path: Path) -> Any:
-    """The visual ``pin.GeometryModel`` (None if it has none or it cannot be built, with a warning)."""
+def build_visuals(model: pin.Model, root: ET.Element, limb: str, path: Path, text: str | None = None) -> Any:
+    """The visual ``pin.GeometryModel`` (None if it has none or it cannot be built, with a warning).
+
+    ``text`` is the URDF text of ``root``; it is used as it is when the visuals name no mesh file.
+    """
     if root.find("link/visual") is None:
         return None
-    resolved = resolve_meshes(root, limb, path)
+    if text is None or root.find(".//mesh") is not None:
+        text = ET.tostring(resolve_meshes(root, limb, path), encoding="unicode")
     with captured_stderr() as noise:
         try:
-            return pin.buildGeomFromUrdfString(
-                model, ET.tostring(resolved, encoding="unicode"), pin.GeometryType.VISUAL
-            )
+            return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
         except Exception as err:  # noqa: BLE001 - visuals are optional; say why they are missing
             problem = str(err)
     reason = parser_reason(noise[0]) if noise else ""
@@ -118,7 +120,7 @@ def load_urdf(limb: str, path: Path) -> tuple[pin.Model, Any]:
         raise URDFError(limb, path, "file not found; check the 'urdf' entry of this limb in mechanism.toml")
     text = read_text(path, lambda problem: URDFError(limb, path, problem))
     model, root = build_model(limb, path, text)
-    return model, build_visuals(model, root, limb, path)
+    return model, build_visuals(model, root, limb, path, text)
 
 
 class TomlReader:

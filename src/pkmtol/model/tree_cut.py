@@ -79,7 +79,7 @@ def load_tree(urdf: Path | str) -> tuple[pin.Model, Any, str]:
         raise URDFError("tree", urdf, "file not found")
     text = read_text(urdf, lambda problem: URDFError("tree", urdf, problem))
     model, root = build_model("tree", urdf, text)
-    visual = build_visuals(model, root, "tree", urdf)
+    visual = build_visuals(model, root, "tree", urdf, text)
     children = {j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None}  # type: ignore[union-attr]
     roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
     return model, visual, str(roots[0]) if roots else "universe"
