@@ -75,7 +75,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
 }
 
 
-def check_keys(path: Path, doc: Mapping[str, Any], known: Mapping[str, frozenset[str]] = KNOWN_KEYS) -> None:
+def check_keys(path: Path, doc: Mapping[str, Any], known: Mapping[str, frozenset[str]] | None = None) -> None:
     """Raise UnknownKeyError for the first key of ``doc`` that its table does not take.
 
     Args:
@@ -86,7 +86,7 @@ def check_keys(path: Path, doc: Mapping[str, Any], known: Mapping[str, frozenset
     Raises:
         UnknownKeyError: naming the dotted key (``limbs[2].actaated``) and the closest known key.
     """
-    _check_table(path, doc, "", "", known)
+    _check_table(path, doc, "", "", KNOWN_KEYS if known is None else known)
 
 
 def _check_table(

@@ -132,9 +132,9 @@ def make_limb(
         if model.parents[j] != j - 1:
             raise URDFError(name, path, f"joint '{model.names[j]}' branches: a limb must be a serial chain")
         _check_joint_numbers(model, j, kind, name, path)
-    bodies = [
-        i for i, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.name == platform_link
-    ]
+    named = [i for i, f in enumerate(model.frames) if f.name == platform_link]
+    # the link of that name (a joint may share it); a limb cut from a closed-loop tree has a frame
+    bodies = [i for i in named if model.frames[i].type == pin.FrameType.BODY] or named
     if not bodies:
         raise URDFError(
             name,
