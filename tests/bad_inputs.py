@@ -20,7 +20,19 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pkmtol import DesignOptions, Mechanism, TaskSpace, allocate, load_mechanism, write_outputs
+from pkmtol import (
+    ClosedChain,
+    DesignOptions,
+    Mechanism,
+    TaskSpace,
+    allocate,
+    fosm_tolerances,
+    load_closed_loop,
+    load_mechanism,
+    parameter_set,
+    sweep,
+    write_outputs,
+)
 from pkmtol import exceptions as E
 from pkmtol.cli import run as cli_run
 from pkmtol.design.budget import check_memory
@@ -298,6 +310,10 @@ CASES: list[Case] = [
     Case("Python API", "an empty β series", lambda t: DesignOptions(betas=()), IA, ("betas", "positive")),
     Case("Python API", "a run that does not fit in memory", lambda t: check_memory(seed_mech(), DesignOptions(samples=10**11), available_bytes=8e9), E.ResourceLimitError, ("samples", "more than the 8 GB available", "at most about"), {"argument": "samples"}),
     Case("Python API", "`mech.limb(\"limb9\")`", lambda t: seed_mech().limb("limb9"), IA, ("limb9", "limb1, limb2, limb3, limb4")),
+    Case("Python API", "`ClosedChain` given a folder name", lambda t: ClosedChain("robots/r2rps_ups"), IA, ("mechanism", "pkmtol.Mechanism"), {"argument": "mechanism"}),  # type: ignore[arg-type]
+    Case("Python API", "`fosm_tolerances` with a `nan` sensitivity", lambda t: fosm_tolerances(np.array([1.0, np.nan]), 5e-5, np.array([2.0])), IA, ("omega", "finite"), {"argument": "omega"}),
+    Case("Python API", "`sweep` given points of 2 coordinates", lambda t: sweep(seed_mech(), parameter_set(seed_mech()), np.zeros((4, 2))), IA, ("points_m", "(n, 3)"), {"argument": "points_m"}),
+    Case("Python API", "`load_closed_loop` given a number as the sidecar", lambda t: load_closed_loop(REPO / "tests/data/r2rps_ups_closed/robot.urdf", 5, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("sidecar", "file path"), {"argument": "sidecar"}),  # type: ignore[arg-type]
     Case("Python API", "`write_outputs` given something else than a result", lambda t: write_outputs("result", t / "o"), IA, ("result", "DesignResult")),  # type: ignore[arg-type]
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),

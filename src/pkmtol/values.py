@@ -145,3 +145,23 @@ def strings(name: str, value: Any) -> tuple[str, ...]:
     if bad:
         raise InvalidArgumentError(name, value, f"expected strings only, found {bad[0]!r}")
     return tuple(value)
+
+
+def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
+    """``value`` if it is a ``kind``; otherwise InvalidArgumentError saying it should be ``what``.
+
+    >>> instance("rng", 3, int, "a number")
+    3
+    """
+    if not isinstance(value, kind):
+        raise InvalidArgumentError(name, value, f"expected {what}")
+    return value
+
+
+def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite float array whose shape matches ``shape`` (``None``: any length)."""
+    arr = array(name, value, ndim=len(shape))
+    if any(s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)):
+        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        raise InvalidArgumentError(name, f"shape {arr.shape}", f"expected an array of shape {want}")
+    return arr

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.exceptions import InvalidRequestError
 
 
@@ -33,6 +34,9 @@ def fosm_tolerances(omega: np.ndarray, target_m: float, betas: np.ndarray) -> np
            [17.67766953,  8.83883476],
            [        inf,         inf]])
     """
+    omega = values.array("omega", omega, ndim=1)
+    values.number("target_m", target_m)
+    values.array("betas", betas)
     check_design(target_m, betas)
     omega = np.asarray(omega, dtype=float)
     scale = 1e-12 * max(float(omega.max(initial=0.0)), 1e-300)

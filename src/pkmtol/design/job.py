@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.design.budget import check_memory
 from pkmtol.design.cost import cost_model, cost_optimal
 from pkmtol.design.exact import CRITERIA, ClaimRow, claimed_vs_true, scale_design
@@ -342,6 +343,9 @@ def method_design_for(
         worst: Grid index of the design point.
         opt: ``opt.method`` (``exact`` or ``cost``) and ``opt.criterion``.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("grid", grid, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
+    values.instance("opt", opt, DesignOptions, "a pkmtol.DesignOptions")
     r_star = float(reliability_fosm(design_beta))
     J = grid.J[:, :, unc]
     model = cost_model([pset.parameters[i] for i in unc], mechanism.extra.get("cost"))

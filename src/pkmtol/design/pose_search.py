@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.error_model.accuracy import grid_norm_moments
 
 
@@ -32,6 +33,9 @@ class PoseSearch:
 
 def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
     """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
+    J = values.array_of_shape("J", J, (None, 3, None))
+    values.count("samples", samples, low=2)
+    values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator (np.random.default_rng(seed))")
     m, _, n = J.shape
     eta = rng.standard_normal((samples, n))
     sampled = np.empty(m)

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import stats
 from tqdm import tqdm
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import ConvergenceError
@@ -140,6 +141,11 @@ def verify(
         rng: Random generator.
         progress: Show a progress bar for the exact subsample.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("sweep_random", sweep_random, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
+    values.count("samples", samples, low=1)
+    values.count("exact_samples", exact_samples, low=0)
+    values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator")
     m = len(sweep_random.poses)
     point_of = np.arange(samples) % m
     eta = sample_errors(distribution, np.where(np.isfinite(sigma), sigma, 0.0), samples, rng)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.separation import Separation, separate
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
@@ -98,6 +99,9 @@ def sweep(
             point's solution (the first point starts from the refined home).
         progress: Show a progress bar.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
+    points_m = values.array_of_shape("points_m", points_m, (None, 3))
     chain = chain or ClosedChain(mechanism)
     poses: list[Pose] = []
     seps = []

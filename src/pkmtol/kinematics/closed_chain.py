@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.exceptions import (
     ConvergenceError,
     JointLimitError,
@@ -77,6 +78,7 @@ class ClosedChain:
         models: Sequence[pin.Model] | None = None,
         check_limits: bool = True,
     ) -> None:
+        values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism (pkmtol.load_mechanism)")
         self.mechanism = mechanism
         self.models = list(models) if models is not None else [lb.model for lb in mechanism.limbs]
         self.datas = [m.createData() for m in self.models]

@@ -155,6 +155,7 @@ def _stats(s: Any) -> dict[str, Any]:
 
 def to_json(r: DesignResult) -> str:
     """JSON text (deterministic for a given seed)."""
+    values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
     return json.dumps(to_json_dict(r), indent=2, ensure_ascii=False) + "\n"
 
 
@@ -242,6 +243,7 @@ def overconstraint_lines(grid: Sweep, names_all: list[str]) -> list[str]:
 
 def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> str:
     """The whole report as terminal text or Markdown (tolerances in mm/mrad, or µm/µrad with ``um``)."""
+    values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
     table = _md_table if markdown else text_table
     h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
     col = r.design_column
