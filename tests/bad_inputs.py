@@ -233,6 +233,8 @@ CASES: list[Case] = [
     Case("Numbers", "`-inf` in a D–H end", toml("end = [0.0, 180.0]", "end = [-inf, 180.0]"), MF, ("limbs[0].dh.end", "finite")),
     Case("Numbers", "`nan` as the design β", toml("design_beta = 2.0", "design_beta = nan"), MF, ("design.design_beta", "finite")),
     Case("Numbers", "`nan` in the z range", toml("z_m = [0.9, 1.1]", "z_m = [0.9, nan]"), MF, ("task_space.z_m", "finite")),
+    Case("Numbers", "a reference point 1e308 m away", toml("position_m = [0.0, 0.0, 0.3]", "position_m = [0.0, 1e308, 0.3]"), MF, ("reference_point.position_m", "beyond ±10000 m")),
+    Case("Numbers", "a URDF origin 1e9 m away", urdf('<origin xyz="0 0 0" rpy="1.570796326794897 0 0" />', '<origin xyz="1e9 0 0" rpy="1.570796326794897 0 0" />'), UE, ("limb4_u1", "beyond ±10000 m")),
     Case("Numbers", "a string in a home", toml("home = [0.0, 0.0, 0.75]", 'home = [0.0, "a", 0.75]'), MF, ("limbs[3].home", "list of numbers")),
     Case("Numbers", "a home with too few values", toml("home = [0.0, 0.0, 0.75]", "home = [0.0, 0.75]"), UE, ("limb 'limb4'", "home has 2 values for 3 joints")),
     # ---- task space

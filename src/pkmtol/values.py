@@ -18,6 +18,20 @@ import numpy as np
 
 from pkmtol.exceptions import InvalidArgumentError
 
+#: Largest length a mechanism may hold [m]: beyond it a number is a typo or a wrong unit (and its
+#: square overflows nothing yet, so every computation stays finite).
+MAX_LENGTH_M = 1e4
+
+
+def within_length(name: str, value: Any) -> np.ndarray:
+    """``value`` (numbers [m]) if every entry is within ±:data:`MAX_LENGTH_M`, else InvalidArgumentError."""
+    arr = np.asarray(value, dtype=float)
+    if arr.size and float(np.max(np.abs(arr))) > MAX_LENGTH_M:
+        raise InvalidArgumentError(
+            name, value, f"a length beyond ±{MAX_LENGTH_M:g} m; is the unit right (metres)?"
+        )
+    return arr
+
 
 def number(name: str, value: Any, *, positive: bool = False, nonnegative: bool = False) -> float:
     """``value`` as a finite float (``positive``: > 0, ``nonnegative``: ≥ 0).

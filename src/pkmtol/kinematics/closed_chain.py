@@ -257,9 +257,11 @@ class ClosedChain:
         """Newton's method on the free joints; returns (q, condition number, residual norm)."""
         q = np.array(q0, dtype=float)
         res_norm = prev_norm = np.inf
-        for _ in range(MAX_ITERATIONS):
+        for iteration in range(MAX_ITERATIONS):
             res, jac = self._evaluate(q, target)
             a = jac[:, free]
+            if not (np.isfinite(res).all() and np.isfinite(a).all()):  # overflow: no solution to refine
+                raise ConvergenceError(f"{what} (the closure equations overflowed)", np.inf, iteration)
             res_norm = float(np.max(np.abs(res)))
             # converged, or stalled at round-off level
             if res_norm < TOLERANCE or (res_norm < 1e-11 and res_norm >= prev_norm):

@@ -18,6 +18,7 @@ from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader, load_urdf, read_text
 from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
 from pkmtol.units import parse_length
+from pkmtol.values import MAX_LENGTH_M
 
 
 def load_mechanism(folder: Path | str) -> Mechanism:
@@ -60,7 +61,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     platform_link = r.get("platform_link", str, default="platform")
     r.get("base_link", str, default="base")
     r.get("description", str, default="")
-    p_ref = r.vector("reference_point.position_m", 3)
+    p_ref = r.lengths("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
     if kind != "position":
         r.fail("task.kind", f"unknown task kind {kind!r}; supported: 'position' (of P)")
@@ -107,7 +108,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         seen[lname] = i
         urdf = folder / lr.get("urdf", str)
         actuated = lr.strings("actuated", default=[])
-        home = lr.array("home") if "home" in ld else None
+        home = lr.lengths("home") if "home" in ld else None
         if home is not None and home.ndim != 1:
             lr.fail("home", f"expected a list of numbers, one per joint, got {ld['home']!r}")
         dh = read_dh(lr) if "dh" in ld else None
@@ -140,13 +141,15 @@ def read_task_space(r: TomlReader) -> TaskSpace:
         for key in ("points_m",):
             if key in r.get("task_space", dict):
                 r.fail(f"task_space.{key}", "belongs to kind = 'points', not 'cylinder'; remove it")
-        z = r.vector("task_space.z_m", 2)
+        z = r.lengths("task_space.z_m", 2)
         rings_f = r.array("task_space.rings")
         whole = rings_f.ndim == 1 and rings_f.size > 0 and np.all(rings_f == np.round(rings_f))
         if not whole or np.any(rings_f < 1):
             r.fail("task_space.rings", f"expected a list of integers ≥ 1, got {rings_f.tolist()!r}")
         rings = tuple(int(x) for x in rings_f)
         radius = float(r.get("task_space.radius_m", (float, int)))
+        if abs(radius) > MAX_LENGTH_M:
+            r.fail("task_space.radius_m", f"a length beyond ±{MAX_LENGTH_M:g} m, got {radius!r}")
         if radius <= 0:
             r.fail("task_space.radius_m", f"the cylinder radius must be > 0, got {radius!r}")
         layers = int(r.get("task_space.layers", int))
@@ -154,7 +157,7 @@ def read_task_space(r: TomlReader) -> TaskSpace:
             r.fail("task_space.layers", f"need at least 1 layer, got {layers!r}")
         if z[1] < z[0]:
             r.fail("task_space.z_m", f"write it as [z_min, z_max], got {z.tolist()!r}")
-        center = r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])
+        center = r.lengths("task_space.center_xy_m", 2, default=[0.0, 0.0])
         if layers * (1 + sum(rings)) > MAX_GRID_POINTS:
             n = layers * (1 + sum(rings))
             r.fail("task_space", f"{n} grid points; at most {MAX_GRID_POINTS} are allowed")
@@ -170,7 +173,7 @@ def read_task_space(r: TomlReader) -> TaskSpace:
         for key in ("radius_m", "z_m", "layers", "rings", "center_xy_m"):
             if key in r.get("task_space", dict):
                 r.fail(f"task_space.{key}", "belongs to kind = 'cylinder', not 'points'; remove it")
-        pts = r.array("task_space.points_m")
+        pts = r.lengths("task_space.points_m")
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             r.fail("task_space.points_m", "need a list of [x, y, z] points in metres")
         if len(pts) > MAX_GRID_POINTS:
@@ -188,12 +191,14 @@ def read_dh(r: TomlReader) -> DHTable:
         r.fail("dh.joint_types", f"expected a list of 'R' and 'P', one per joint, got {list(types)!r}")
     n = len(types)
     links = r.array("dh.links")
+    if links.ndim == 2 and links.shape[1:] == (4,) and np.abs(links[:, 1:3]).max(initial=0.0) > MAX_LENGTH_M:
+        r.fail("dh.links", f"a length d or a beyond ±{MAX_LENGTH_M:g} m; is the unit right (metres)?")
     if links.shape != (n + 1, 4):
         r.fail("dh.links", f"need {n + 1} rows [theta_deg, d_m, a_m, phi_deg] for {n} joints")
     links = links.copy()
     links[:, 0] = np.radians(links[:, 0])
     links[:, 3] = np.radians(links[:, 3])
-    end = r.vector("dh.end", 2)
+    end = r.lengths("dh.end", 2)
     limits = r.array("dh.limits")
     if limits.shape != (n, 2):
         r.fail("dh.limits", f"need {n} rows [lower, upper] (deg for R, m for P)")

@@ -75,7 +75,9 @@ class Mechanism:
             raise InvalidArgumentError(
                 "reference_point_m", self.reference_point_m, "expected an array of 3 numbers"
             )
-        values.vector("reference_point_m", self.reference_point_m, 3)
+        values.within_length(
+            "reference_point_m", values.vector("reference_point_m", self.reference_point_m, 3)
+        )
         if not isinstance(self.task_space, TaskSpace):
             raise InvalidArgumentError("task_space", self.task_space, "expected a pkmtol.TaskSpace")
         values.length_m("target_m", self.target_m)

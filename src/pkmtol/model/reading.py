@@ -18,6 +18,7 @@ import pinocchio as pin
 
 from pkmtol.exceptions import MechanismFormatError, PkmtolWarning, URDFError
 from pkmtol.model.urdf_xml import check_urdf_tree, resolve_meshes
+from pkmtol.values import MAX_LENGTH_M
 
 
 def read_text(path: Path, fail: Callable[[str], Exception]) -> str:
@@ -154,6 +155,15 @@ class TomlReader:
         if isinstance(node, float) and not math.isfinite(node):
             self.fail(key, f"expected a finite number, got {node!r}")
         return node
+
+    def lengths(self, key: str, n: int | None = None, default: Any = _MISSING) -> np.ndarray:
+        """Like :meth:`vector` (``n`` numbers) or :meth:`array` (``n`` None), each within ±10 km [m]."""
+        arr = self.array(key, default) if n is None else self.vector(key, n, default)
+        if arr.size and float(np.max(np.abs(arr))) > MAX_LENGTH_M:
+            self.fail(
+                key, f"a length beyond ±{MAX_LENGTH_M:g} m, got {arr.tolist()!r}; is the unit right (metres)?"
+            )
+        return arr
 
     def array(self, key: str, default: Any = _MISSING) -> np.ndarray:
         """Read a (nested) list of finite numbers as a float array; fail naming ``key`` if it is not."""

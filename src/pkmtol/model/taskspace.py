@@ -51,6 +51,7 @@ class TaskSpace:
                     "TaskSpace.points_m", None, "kind 'points' needs points_m, an array of shape (m, 3) [m]"
                 )
             pts = values.array("TaskSpace.points_m", self.points_m, ndim=2)
+            values.within_length("TaskSpace.points_m", pts)
             if pts.shape[1:] != (3,) or len(pts) == 0:
                 raise InvalidArgumentError(
                     "TaskSpace.points_m", self.points_m, f"need [x, y, z] points, got shape {pts.shape}"
@@ -65,8 +66,12 @@ class TaskSpace:
             raise InvalidArgumentError(
                 "TaskSpace.points_m", "an array", "only kind 'points' takes points; use kind='points'"
             )
-        values.number("TaskSpace.radius_m", self.radius_m, positive=True)
-        z = values.vector("TaskSpace.z_range_m", self.z_range_m, 2)
+        values.within_length(
+            "TaskSpace.radius_m", values.number("TaskSpace.radius_m", self.radius_m, positive=True)
+        )
+        z = values.within_length(
+            "TaskSpace.z_range_m", values.vector("TaskSpace.z_range_m", self.z_range_m, 2)
+        )
         if z[1] < z[0]:
             raise InvalidArgumentError("TaskSpace.z_range_m", self.z_range_m, "write it as (z_min, z_max)")
         values.count("TaskSpace.layers", self.layers, low=1)
@@ -75,7 +80,9 @@ class TaskSpace:
             raise InvalidArgumentError("TaskSpace.rings", rings, "expected points per ring, e.g. (8, 16, 24)")
         for k in rings:
             values.count("TaskSpace.rings", k, low=1)
-        center = values.vector("TaskSpace.center_xy_m", self.center_xy_m, 2)
+        center = values.within_length(
+            "TaskSpace.center_xy_m", values.vector("TaskSpace.center_xy_m", self.center_xy_m, 2)
+        )
         n = int(self.layers) * (1 + sum(int(k) for k in rings))
         if n > MAX_GRID_POINTS:
             raise InvalidArgumentError("TaskSpace.rings", rings, f"{n} grid points (max {MAX_GRID_POINTS})")

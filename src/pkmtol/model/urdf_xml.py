@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from pkmtol.exceptions import MissingMeshWarning, URDFError
+from pkmtol.values import MAX_LENGTH_M
 
 #: Joint types of the URDF format (pkmtol's limbs take revolute and prismatic; see make_limb).
 URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -89,7 +90,9 @@ def _check_joint(joint: ET.Element, name: str, links: Sequence[str], fail: _Fail
     origin = joint.find("origin")
     if origin is not None:
         for attr in ("xyz", "rpy"):
-            _numbers(origin.get(attr, "0 0 0"), 3, f"origin {attr}", bad)
+            xyz = _numbers(origin.get(attr, "0 0 0"), 3, f"origin {attr}", bad)
+            if attr == "xyz" and max(abs(v) for v in xyz) > MAX_LENGTH_M:
+                bad(f"origin xyz = {origin.get(attr)!r}: beyond ±{MAX_LENGTH_M:g} m; is the unit right (m)?")
     if joint.find("mimic") is not None:
         bad(
             f"mimics joint '{joint.find('mimic').get('joint')}' (<mimic>); pkmtol has no coupled "  # type: ignore[union-attr]
