@@ -159,3 +159,61 @@ def test_summary_wording(result):
     from pkmtol.present.tables import _point
 
     assert _point(worst) == "(0.0, 600.0, 1000.0) mm"
+
+
+def test_check_shows_a_progress_bar_when_asked(capsys):
+    from pkmtol.kinematics.check import check_mechanism
+
+    report = check_mechanism(load_mechanism(SEED), progress=True)
+    assert report.n_reachable == 147
+    err = capsys.readouterr().err
+    assert "check" in err and "147" in err  # tqdm's bar: "check: 100%|...| 147/147"
+
+
+def test_progress_only_on_a_terminal(monkeypatch):
+    from pkmtol.cli.common import show_progress
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert show_progress(False) is True and show_progress(True) is False
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    assert show_progress(False) is False
+
+
+def test_out_of_memory_is_one_line_not_a_traceback(monkeypatch, capsys, tmp_path):
+    import pkmtol.cli.allocate as cli_allocate
+
+    def exhausted(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(cli_allocate, "allocate", exhausted)
+    assert main(["allocate", str(SEED), "--out", str(tmp_path / "o"), *SMALL]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pkmtol: error: out of memory") and "Traceback" not in err
+    assert list((tmp_path / "o").iterdir()) == []
+
+
+def test_memory_estimate_matches_the_measured_scale():
+    """The estimate for 100,000 samples on the seed robot is within 2× of the 339 MB measured (budget.py)."""
+    from pkmtol.design.budget import available_memory, estimate_memory
+
+    est = estimate_memory(load_mechanism(SEED), DesignOptions(samples=100_000))
+    assert est.uncompensatable == 14 and est.parameters == 108
+    assert 170e6 < est.total_bytes < 680e6
+    assert available_memory() is None or available_memory() > 0
+
+
+def test_warnings_print_as_one_line(tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "robot"
+    shutil.copytree(SEED, folder)
+    urdf = folder / "limb4.urdf"
+    urdf.write_text(
+        urdf.read_text(encoding="utf-8").replace(
+            '<sphere radius="0.03" />', '<mesh filename="gone.stl" />', 1
+        ),
+        encoding="utf-8",
+    )
+    assert main(["check", str(folder), "--no-progress"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("pkmtol: warning: limb 'limb4'") and "gone.stl" in err[0]

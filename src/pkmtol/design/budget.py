@@ -20,6 +20,8 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from pkmtol.error_model.parameters import default_set, parameter_set
 from pkmtol.error_model.sweep import sweep
 from pkmtol.exceptions import ResourceLimitError
@@ -45,7 +47,7 @@ class MemoryEstimate:
         samples_bytes: The Monte Carlo samples' part.
         poses_bytes: The grid and verification poses' part.
         base_bytes: The fixed part.
-        uncompensatable: Uncompensatable errors ``k`` counted (at the first grid point).
+        uncompensatable: Uncompensatable errors ``k`` counted (at four grid points).
         parameters: Error parameters ``n`` of the set.
     """
 
@@ -64,13 +66,13 @@ class MemoryEstimate:
 def estimate_memory(mechanism: Mechanism, options: Any) -> MemoryEstimate:
     """Estimate the peak memory of ``allocate(mechanism, options)``.
 
-    ``k`` is counted from the error model at the first grid point (one inverse kinematics): an
-    error that is uncompensatable anywhere is almost always so there too.
+    ``k`` is counted from the error model at four grid points spread over the grid (first to last;
+    four inverse kinematics): a symmetric point alone (the centre) can hide some of them.
     """
     pset = parameter_set(mechanism, options.parameter_set or default_set(mechanism))
     grid = mechanism.task_space.grid()
-    first = sweep(mechanism, pset, grid[:1])
-    k = first.classify().count("uncompensatable")
+    probe = sweep(mechanism, pset, grid[np.unique(np.linspace(0, len(grid) - 1, 4).astype(int))])
+    k = probe.classify().count("uncompensatable")
     n = len(pset)
     samples = int(options.samples)
     poses = len(grid) + min(int(options.verification_poses), samples)
