@@ -222,6 +222,7 @@ CASES: list[Case] = [
     Case("TOML keys", "a misspelt table: `[desing]`", toml("[design]", "[desing]"), UK, ("desing", "did you mean 'design'"), {"key": "desing"}),
     Case("TOML keys", "a key in the wrong table (`radius_m` under `[design]`)", toml("design_beta = 2.0", "design_beta = 2.0\nradius_m = 0.6"), UK, ("design.radius_m",), {"key": "design.radius_m"}),
     Case("TOML keys", "an unknown field of a cost table", toml("[design]", "[cost.length]\nC = 1.0\n\n[design]"), UK, ("cost.length.C",), {"key": "cost.length.C"}),
+    Case("TOML keys", "a cost field that is not a number", toml("[design]", '[cost.angle]\nB = "cheap"\n\n[design]'), MF, ("cost.angle.B", "expected float or int")),
     Case("TOML keys", "a required key missing (`name`)", toml('name = "r2rps_ups"\n', ""), MF, ("'name'", "missing"), {"key": "name"}),
     Case("TOML keys", "an empty mechanism name", toml('name = "r2rps_ups"', 'name = ""'), MF, ("'name'", "must not be empty"), {"key": "name"}),
     Case("TOML keys", "both `[[limbs]]` and `[closed_loop]`", toml("[design]", '[closed_loop]\nurdf = "robot.urdf"\n\n[design]'), MF, ("'limbs'", "not both"), {"key": "limbs"}),

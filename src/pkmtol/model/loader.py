@@ -85,7 +85,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
     if design_beta <= 0:
         r.fail("design.design_beta", f"β must be positive, got {design_beta!r}")
-    r.get("cost", dict, default={})
+    cost = read_cost(r)
     limbs = []
     if "closed_loop" in doc and "limbs" in doc:
         r.fail("limbs", "give either [[limbs]] or a [closed_loop] table, not both")
@@ -128,10 +128,25 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         root=folder,
         description=r.get("description", str, default=""),
         extra={
-            "cost": r.get("cost", dict, default={}),
+            "cost": cost,
             "calibration": r.get("calibration", dict, default={}),
         },
     )
+
+
+def read_cost(r: TomlReader) -> dict:
+    """The optional ``[cost]`` table (docs/theory.md): every field a finite number, checked here."""
+    cost = r.get("cost", dict, default={})
+    for kind in ("length", "angle"):
+        for field in r.get(f"cost.{kind}", dict, default={}):
+            r.get(f"cost.{kind}.{field}", (float, int))
+    for name, entry in r.get("cost.parameters", dict, default={}).items():
+        if not isinstance(entry, dict):
+            r.fail(f'cost.parameters."{name}"', f"expected a table of cost fields, got {entry!r}")
+        for field, value in entry.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                r.fail(f'cost.parameters."{name}".{field}', f"expected a finite number, got {value!r}")
+    return dict(cost)
 
 
 def read_task_space(r: TomlReader) -> TaskSpace:
