@@ -18,7 +18,7 @@ from pkmtol.calibration.maps import PoseMaps, pose_maps
 from pkmtol.calibration.selection import d_optimal, log_det_information, random_subset
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.sweep import Sweep, sweep
 from pkmtol.exceptions import InvalidRequestError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -57,12 +57,19 @@ class CalibrationPlan:
 
 
 def candidate_pool(
-    mechanism: Mechanism, pset: ParameterSet, settings: CalibrationSettings, chain: ClosedChain | None = None
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    settings: CalibrationSettings,
+    chain: ClosedChain | None = None,
+    grid: Sweep | None = None,
 ) -> PoseMaps:
-    """The task-space grid plus ``settings.candidates`` random reachable poses, as linear maps."""
+    """The task-space grid plus ``settings.candidates`` random reachable poses, as linear maps.
+
+    ``grid`` is the task-space grid's sweep when it has been computed already.
+    """
     chain = chain or ClosedChain(mechanism)
     grid_points = mechanism.task_space.grid()
-    grid = sweep(mechanism, pset, grid_points, chain)
+    grid = grid if grid is not None else sweep(mechanism, pset, grid_points, chain)
     maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m)
     if settings.candidates == 0:
         return maps

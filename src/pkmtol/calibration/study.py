@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pkmtol.calibration.compensation import PoseErrors, controller_commands, pose_errors
-from pkmtol.calibration.identification import identify, model_positions
+from pkmtol.calibration.identification import Identification, identify, model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import PoseMaps
 from pkmtol.calibration.plan import CalibrationPlan
@@ -188,6 +188,48 @@ def study_context(
     )
 
 
+def calibrate_and_evaluate(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    plan: CalibrationPlan,
+    true: Machine,
+    noise: np.ndarray | float,
+    poses: PoseMaps,
+) -> tuple[PoseErrors, Identification]:
+    """Calibrate the true machine by ``plan`` and measure it at ``poses`` (exact throughout).
+
+    The tracker reads the targets at the plan's commands with ``noise`` (3·N·t,) added [m]; the
+    identification fits the controller model; the controller commands each pose's P by its model's
+    exact inverse kinematics; the true machine's exact forward kinematics gives the errors (NaN
+    where the model or the machine cannot be solved).
+    """
+    measured, _ = model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
+    measured = measured + np.asarray(noise, dtype=float).reshape(measured.shape)
+    ident = identify(
+        mechanism,
+        pset,
+        plan.ident,
+        plan.H,
+        plan.maps.commands,
+        plan.maps.q,
+        measured,
+        plan.targets_m,
+        plan.prior_sigma,
+    )
+    model = Machine(mechanism, pset, ident.estimate)
+    commands, ok = controller_commands(model, poses.points_m, poses.q)
+    errors = pose_errors(
+        true, np.where(ok[:, None], commands, poses.commands), poses.q, poses.points_m, poses.rotations
+    )
+    if not ok.all():
+        errors = PoseErrors(
+            position_m=np.where(ok[:, None], errors.position_m, np.nan),
+            rotation_rad=np.where(ok[:, None], errors.rotation_rad, np.nan),
+            solved=errors.solved & ok,
+        )
+    return errors, ident
+
+
 def simulate_machine(ctx: StudyContext, seed: np.random.SeedSequence) -> MachineOutcome:
     """Draw one machine, calibrate it by every case, and measure it at the held-out poses."""
     rng = np.random.default_rng(seed)
@@ -202,31 +244,8 @@ def simulate_machine(ctx: StudyContext, seed: np.random.SeedSequence) -> Machine
     outs = []
     for cc in ctx.cases:
         plan = cc.plan
-        measured, _ = model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
-        noise = rng.standard_normal(measured.size) * plan.settings.noise_m
-        measured = measured + noise.reshape(measured.shape)
-        ident = identify(
-            ctx.mechanism,
-            ctx.pset,
-            plan.ident,
-            plan.H,
-            plan.maps.commands,
-            plan.maps.q,
-            measured,
-            plan.targets_m,
-            plan.prior_sigma,
-        )
-        model = Machine(ctx.mechanism, ctx.pset, ident.estimate)
-        commands, ok = controller_commands(model, ho.points_m, ho.q)
-        errors = pose_errors(
-            true, np.where(ok[:, None], commands, ho.commands), ho.q, ho.points_m, ho.rotations
-        )
-        if not ok.all():
-            errors = PoseErrors(
-                position_m=np.where(ok[:, None], errors.position_m, np.nan),
-                rotation_rad=np.where(ok[:, None], errors.rotation_rad, np.nan),
-                solved=errors.solved & ok,
-            )
+        noise = rng.standard_normal(plan.H.shape[0]) * plan.settings.noise_m
+        errors, ident = calibrate_and_evaluate(ctx.mechanism, ctx.pset, plan, true, noise, ho)
         lin_p = np.einsum("kin,n->ki", cc.maps.position, delta) + np.einsum(
             "kiM,M->ki", cc.maps.position_noise, noise
         )

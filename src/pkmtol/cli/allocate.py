@@ -6,13 +6,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import OPTION_OF_FIELD, named_as_options, show_progress, target_option
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
-from pkmtol.exceptions import FiguresError, InvalidArgumentError, OutputError
+from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.run_folder import RunFolder
 from pkmtol.present.tables import render_tables, summary_text
+from pkmtol.units import parse_angle
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -84,6 +86,27 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default="mm",
         help="units of the tolerance tables: mm and mrad (default) or um (µm and µrad)",
     )
+    p.add_argument(
+        "--compensation",
+        choices=["ideal", "calibrated", "none"],
+        default="ideal",
+        help="ideal: the paper's Eq. 25 (default); calibrated: the machine after a least-squares "
+        "calibration (plan from [calibration] or the options below); none: the traditional method",
+    )
+    p.add_argument(
+        "--orientation-target",
+        default=None,
+        help="largest tilt Δα* of the tool axis, e.g. 0.1mrad (default: [design] orientation_target; none)",
+    )
+    p.add_argument(
+        "--tool-axis",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="tool axis in the platform frame (default: [design] tool_axis, else 0 0 1)",
+    )
+    add_plan_options(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument(
@@ -121,8 +144,23 @@ def _run(args: argparse.Namespace) -> int:
             args.criterion,
             f"only --method exact reads it; --method {args.method} would ignore it",
         )
+    orientation = None
+    if args.orientation_target is not None:
+        try:
+            orientation = parse_angle(args.orientation_target, "--orientation-target")
+        except InvalidRequestError as err:
+            raise InvalidArgumentError(
+                "--orientation-target",
+                args.orientation_target,
+                str(err).removeprefix("--orientation-target: "),
+            ) from err
     # one --beta value is the design β: name it as typed
-    names = {**OPTION_OF_FIELD, "design_beta": "--design-beta" if args.design_beta is not None else "--beta"}
+    names = {
+        **OPTION_OF_FIELD,
+        "design_beta": "--design-beta" if args.design_beta is not None else "--beta",
+        "orientation_target_rad": "--orientation-target",
+        "tool_axis": "--tool-axis",
+    }
     with named_as_options(names):
         opts = DesignOptions(
             target_m=target,
@@ -136,6 +174,10 @@ def _run(args: argparse.Namespace) -> int:
             method=args.method,
             criterion=args.criterion or "every",
             progress=show_progress(args.no_progress),
+            compensation=args.compensation,
+            calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
+            orientation_target_rad=orientation,
+            tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
         )
         check_memory(mech, opts)
     out = args.out if args.out is not None else Path("out") / mech.name

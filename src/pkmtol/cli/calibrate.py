@@ -11,9 +11,10 @@ import numpy as np
 
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
-from pkmtol.calibration.settings import CONTROLLERS, SELECTIONS, CalibrationSettings, settings_from_table
+from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
@@ -32,7 +33,6 @@ from pkmtol.present.calibration_tables import (
     study_text,
 )
 from pkmtol.present.tables import check_output_folder
-from pkmtol.units import parse_length
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -52,21 +52,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
-    p.add_argument("--poses", type=int, default=None, help="calibration poses N (default 40)")
-    p.add_argument("--selection", choices=SELECTIONS, default=None, help="pose selection (default d-optimal)")
-    p.add_argument(
-        "--controller",
-        default=None,
-        help="controller model: compensatable (default), full, or comma-separated parameter names",
-    )
-    p.add_argument("--noise", default=None, help="tracker noise σ per coordinate, e.g. 0.01mm (default)")
-    p.add_argument("--prior", action="store_true", help="identify with a Gaussian prior (MAP)")
-    p.add_argument(
-        "--rank-tolerance", type=float, default=None, help="relative pivot tolerance (default 1e-6)"
-    )
-    p.add_argument(
-        "--candidates", type=int, default=None, help="random poses added to the grid pool (default 300)"
-    )
+    add_plan_options(p)
     p.add_argument("--plan", type=Path, default=None, help="write the chosen poses to this CSV file")
     p.add_argument("--simulate", action="store_true", help="run the exact-kinematics calibration study")
     p.add_argument("--machines", type=int, default=100, help="machines of the study (default 100)")
@@ -84,25 +70,6 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<robot>/calibration)")
     p.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     p.set_defaults(run=_run)
-
-
-def _settings(mech: Mechanism, args: argparse.Namespace) -> CalibrationSettings:
-    controller: str | tuple[str, ...] | None = None
-    if args.controller is not None:
-        names = [c.strip() for c in args.controller.split(",") if c.strip()]
-        controller = names[0] if len(names) == 1 and names[0] in CONTROLLERS else tuple(names)
-    overrides = {
-        "poses": args.poses,
-        "selection": args.selection,
-        "controller": controller,
-        "noise_m": None if args.noise is None else parse_length(args.noise, "--noise"),
-        "prior": True if args.prior else None,
-        "rank_tolerance": args.rank_tolerance,
-        "candidates": args.candidates,
-        "seed": args.seed,
-    }
-    path = (mech.root / "mechanism.toml") if mech.root is not None else Path("<mechanism>")
-    return settings_from_table(dict(mech.extra.get("calibration") or {}), path, **overrides)
 
 
 def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: int) -> tuple[np.ndarray, str]:
@@ -123,11 +90,21 @@ def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: in
                 f"give --set {kind}"
             )
         tol = np.full(len(pset), np.nan)
+        design = doc.get("method_design") or {}
+        chosen = dict(zip(design.get("parameters", []), design.get("tolerance", []), strict=False))
+        manufacturing = CalibrationSettings().manufacturing_sigma(pset)
+        classes_in_mode = {p["name"]: p.get("class_in_mode") for p in doc["parameters"]}
         for i, name in enumerate(pset.names):
-            t = by_name.get(name)
-            if t is not None and t[col] is not None:
-                tol[i] = float(t[col])
-        return tol, f"tolerances from {path}"
+            t = chosen.get(name, None) if chosen else None
+            if t is None:
+                row = by_name.get(name)
+                t = None if row is None else row[col]
+            if t is not None:
+                tol[i] = float(t)
+            elif classes_in_mode.get(name) == "identified":
+                tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
+        what = f"'{design['method']}' design" if design else "FOSM design-β tolerances"
+        return tol, f"{what} of {path}"
     res = allocate(
         mech,
         DesignOptions(
@@ -155,7 +132,7 @@ def _run(args: argparse.Namespace) -> int:
             raise InvalidRequestError(f"{name} must be ≥ {low}, got {value}")
     if args.simulate and args.measurements is not None:
         raise InvalidRequestError("give either --simulate or --measurements, not both")
-    settings = _settings(mech, args)
+    settings = plan_settings(mech, args, args.seed)
     pset = parameter_set(mech, args.pset or default_set(mech))
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
     check_output_folder(out)

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import mm, show_progress
+from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
-from pkmtol.error_model.table import error_table
 from pkmtol.exceptions import OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
@@ -31,6 +32,14 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="parameter set (default: dh when every limb has a D–H table, else urdf)",
     )
+    p.add_argument(
+        "--compensation",
+        choices=["ideal", "calibrated", "none"],
+        default="ideal",
+        help="ideal: the paper's classes (default); calibrated: identified / toleranced / absorbed after "
+        "the calibration plan of [calibration] or the options below; none: no compensation",
+    )
+    add_plan_options(p)
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=_run)
@@ -40,14 +49,20 @@ def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
     if args.json is not None and not (args.json.parent or Path(".")).is_dir():
         raise OutputError(args.json, f"folder {args.json.parent} does not exist")
-    table = error_table(mech, args.pset, progress=show_progress(args.no_progress))
-    text = table.to_json()  # rendered before anything is printed or written
-    counts = {c: table.classes.count(c) for c in CLASSES}
-    print(
-        f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
-        + ", ".join(f"{counts[c]} {c}" for c in CLASSES)
+    settings = plan_settings(mech, args) if args.compensation == "calibrated" else None
+    table = mode_error_table(
+        mech, args.pset, args.compensation, settings, progress=show_progress(args.no_progress)
     )
-    print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
+    text = table.to_json()  # rendered before anything is printed or written
+    names = CLASSES if args.compensation == "ideal" else tuple(dict.fromkeys(table.classes))
+    counts = {c: table.classes.count(c) for c in names}
+    mode = "" if args.compensation == "ideal" else f" ({args.compensation} compensation)"
+    print(
+        f"parameter set '{table.pset.kind}'{mode}: {len(table.pset)} parameters — "
+        + ", ".join(f"{counts[c]} {c}" for c in names)
+    )
+    what = "η_c" if args.compensation == "ideal" else "the toleranced errors"
+    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition

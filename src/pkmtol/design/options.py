@@ -9,7 +9,9 @@ from __future__ import annotations
 from typing import Any
 
 import pkmtol.values as values
+from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.design.exact import CRITERIA
+from pkmtol.error_model.compensation import COMPENSATIONS
 from pkmtol.error_model.parameters import PARAMETER_SETS
 from pkmtol.exceptions import InvalidArgumentError
 
@@ -28,7 +30,9 @@ def check_options(opt: Any) -> None:
     ``verification_poses`` ≥ 1, ``exact_samples`` ≥ 0, ``claim_poses`` ≥ 1 and ``seed`` ≥ 0 whole
     numbers (not bool, not float); ``progress`` a bool; ``method`` one of :data:`METHODS`;
     ``criterion`` one of ``CRITERIA``, and other than ``"every"`` only with ``method="exact"``
-    (the only method that reads it).
+    (the only method that reads it); ``compensation`` one of ``COMPENSATIONS``; ``calibration``
+    a ``CalibrationSettings`` (or None); ``orientation_target_rad`` positive (or None);
+    ``tool_axis`` three finite numbers, not all zero (or None).
     """
     if opt.target_m is not None:
         if isinstance(opt.target_m, str):
@@ -56,6 +60,17 @@ def check_options(opt: Any) -> None:
     values.flag("progress", opt.progress)
     values.choice("method", opt.method, METHODS)
     values.choice("criterion", opt.criterion, CRITERIA)
+    values.choice("compensation", opt.compensation, COMPENSATIONS)
+    if opt.calibration is not None and not isinstance(opt.calibration, CalibrationSettings):
+        raise InvalidArgumentError("calibration", opt.calibration, "expected a CalibrationSettings (or None)")
+    if opt.orientation_target_rad is not None:
+        values.number("orientation_target_rad", opt.orientation_target_rad, positive=True)
+    if opt.tool_axis is not None:
+        axis = values.vector("tool_axis", opt.tool_axis, 3)
+        if float(abs(axis).max()) == 0.0:
+            raise InvalidArgumentError(
+                "tool_axis", opt.tool_axis, "expected a non-zero [x, y, z] (platform frame)"
+            )
     if opt.criterion != "every" and opt.method != "exact":
         raise InvalidArgumentError(
             "criterion",

@@ -17,7 +17,7 @@ from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader, load_urdf, read_text
 from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
-from pkmtol.units import parse_length
+from pkmtol.units import parse_angle, parse_length
 from pkmtol.values import MAX_LENGTH_M
 
 
@@ -86,6 +86,18 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     if design_beta <= 0:
         r.fail("design.design_beta", f"β must be positive, got {design_beta!r}")
     cost = read_cost(r)
+    design_extra: dict[str, object] = {}
+    alpha = r.get("design.orientation_target", str, default=None)
+    if alpha is not None:
+        try:
+            design_extra["orientation_target_rad"] = parse_angle(alpha, "design.orientation_target")
+        except InvalidRequestError as err:
+            r.fail("design.orientation_target", str(err))
+    if "tool_axis" in dict(doc.get("design") or {}):
+        axis = r.vector("design.tool_axis", 3)
+        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-12:
+            r.fail("design.tool_axis", f"expected a non-zero [x, y, z] (platform frame), got {axis.tolist()}")
+        design_extra["tool_axis"] = tuple(float(x) for x in axis)
     limbs = []
     if "closed_loop" in doc and "limbs" in doc:
         r.fail("limbs", "give either [[limbs]] or a [closed_loop] table, not both")
@@ -130,6 +142,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         extra={
             "cost": cost,
             "calibration": r.get("calibration", dict, default={}),
+            "design": design_extra,
         },
     )
 
