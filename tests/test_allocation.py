@@ -14,7 +14,8 @@ from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.accuracy import norm_moments
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.model.loader import load_mechanism
-from pkmtol.present.tables import to_json, write_outputs
+from pkmtol.present.outputs import write_outputs
+from pkmtol.present.tables import to_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "robots" / "r2rps_ups"

@@ -59,7 +59,8 @@ from pkmtol.model.limb import Limb
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.model.taskspace import TaskSpace
-from pkmtol.present.tables import summary_text, to_json, write_outputs
+from pkmtol.present.outputs import write_outputs
+from pkmtol.present.tables import summary_text, to_json
 
 __all__ = [
     "ClosedChain",

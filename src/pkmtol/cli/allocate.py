@@ -12,8 +12,9 @@ from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.loader import load_mechanism
+from pkmtol.present.outputs import render_tables
 from pkmtol.present.run_folder import RunFolder
-from pkmtol.present.tables import render_tables, summary_text
+from pkmtol.present.tables import summary_text
 from pkmtol.units import parse_angle
 
 

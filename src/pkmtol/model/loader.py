@@ -15,7 +15,7 @@ from pkmtol.model.dh import DHTable, check_dh_matches
 from pkmtol.model.keys import check_keys
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
-from pkmtol.model.reading import TomlReader, load_urdf, read_text
+from pkmtol.model.reading import TomlReader, check_finite, load_urdf, read_text
 from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
 from pkmtol.units import parse_angle, parse_length
 from pkmtol.values import MAX_LENGTH_M
@@ -54,6 +54,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     except tomllib.TOMLDecodeError as err:
         raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
     check_keys(path, doc)
+    check_finite(path, doc)
     r = TomlReader(path, doc)
     name = r.get("name", str)
     if not name.strip():

@@ -124,6 +124,21 @@ def load_urdf(limb: str, path: Path) -> tuple[pin.Model, Any]:
     return model, build_visuals(model, root, limb, path, text)
 
 
+def check_finite(path: Path, doc: Any, where: str = "") -> None:
+    """Raise MechanismFormatError naming the dotted key of the first ``nan`` or ``inf`` anywhere in ``doc``.
+
+    Every table is covered, also those read later by other stages (``[calibration]``, ``[cost]``).
+    """
+    if isinstance(doc, dict):
+        for key, value in doc.items():
+            check_finite(path, value, f"{where}.{key}" if where else str(key))
+    elif isinstance(doc, list):
+        for i, value in enumerate(doc):
+            check_finite(path, value, f"{where}[{i}]")
+    elif isinstance(doc, float) and not math.isfinite(doc):
+        raise MechanismFormatError(path, where, f"{doc!r} is not a finite number; write the number itself")
+
+
 class TomlReader:
     """Typed access to a TOML document with errors that name the file and the dotted key.
 
