@@ -130,6 +130,7 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
             "<equality><weld body1='platform' body2='...'/></equality> (or site1/site2)",
         )
     for spec in specs:
+        frame_of(path, model, spec, 1), frame_of(path, model, spec, 2)  # both sides are in the model
         check_relpose(path, spec, model)
     try:
         model, _, anchors = pin.buildModelAndConstraintsFromMJCF(str(path))
@@ -144,7 +145,8 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
     for entry in model.referenceConfigurations:
         key, q = str(entry.key()), entry.data()
         if key != "qpos0":
-            keyframes[key] = {model.names[j]: float(q[model.joints[j].idx_q]) for j in range(1, model.njoints)}
+            joints_q = ((model.names[j], model.joints[j].idx_q) for j in range(1, model.njoints))
+            keyframes[key] = {name: float(q[iq]) for name, iq in joints_q}
     return MjcfTree(
         path=path, model=model, visual=visual, loops=tuple(loops), actuated=tuple(motors), keyframes=keyframes
     )
