@@ -18,6 +18,9 @@ kinds, tendons, multi-DOF joints, and the bodies and joints Pinocchio's reader w
 
 from __future__ import annotations
 
+import copy
+import tempfile
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,6 +109,7 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
     try:
         model = pin.buildModelFromMJCF(str(path))
     except (RuntimeError, ValueError) as err:
+        _diagnose(path, root)  # a keyframe's size error hides lost or multi-DOF joints
         raise MJCFError(path, "-", f"Pinocchio cannot read it: {err}") from err
     check_model(path, root, model)
     joints = list(model.names[1:])
@@ -150,6 +154,21 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
     return MjcfTree(
         path=path, model=model, visual=visual, loops=tuple(loops), actuated=tuple(motors), keyframes=keyframes
     )
+
+
+def _diagnose(path: Path, root: ET.Element) -> None:
+    """Run :func:`check_model` on the file without its keyframes, when Pinocchio reads that."""
+    bare = copy.deepcopy(root)
+    for key in bare.findall("keyframe"):
+        bare.remove(key)
+    with tempfile.TemporaryDirectory() as tmp:
+        probe = Path(tmp) / path.name
+        ET.ElementTree(bare).write(probe, encoding="unicode")
+        try:
+            model = pin.buildModelFromMJCF(str(probe))
+        except (RuntimeError, ValueError):
+            return
+    check_model(path, root, model)
 
 
 def _closure_frames(

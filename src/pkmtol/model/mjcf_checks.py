@@ -172,9 +172,9 @@ def check_model(path: Path, root: ET.Element, model: pin.Model) -> None:
             raise MultiDofJointError(
                 path, _label(joints[0]), "a free joint: the base of a parallel mechanism is fixed; remove it"
             )
-    model_joints = set(model.names[1:])
+    known = set(model.names[1:])
     missing = [
-        _label(j) for j in world.iter("joint") if j.get("name") is not None and j.get("name") not in model_joints
+        _label(j) for j in world.iter("joint") if j.get("name") is not None and j.get("name") not in known
     ]
     if missing:
         raise LostElementError(
