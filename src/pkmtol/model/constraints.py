@@ -99,8 +99,9 @@ class ConstrainedModel:
     def rigid_constraints(self) -> list[Any]:
         """The constraints as legacy ``pin.RigidConstraintModel`` (6D, LOCAL), for ``constraintDynamics``.
 
-        Converted by ``pin.convertToRigidConstraintModel``; their Jacobian has the opposite sign of
-        the ``FrameAnchorConstraintModel``'s.
+        Converted by ``pin.convertToRigidConstraintModel``. Their Jacobian is minus the
+        ``FrameAnchorConstraintModel``'s, and ``pin.getConstraintsJacobian`` gives it only after each
+        model's ``calc`` has filled its data (with fresh datas it returns another matrix, silently).
         """
         return [pin.convertToRigidConstraintModel(self.model, c) for c in self.constraints]
 
