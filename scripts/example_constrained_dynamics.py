@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         f"perturbed constraints {np.max(np.abs(perturbed.residuals(q))):.2e}"
     )
     step = one_step(perturbed, q, args.push, args.dt, mech.reference_point_m)
-    print(f"pin.constraintDynamics, at rest, gravity -z, {args.push:g} on every actuator:")
+    print(f"pin.constraintDynamics, at rest, gravity -z, {args.push:g} N (or N m) on every actuator:")
     names = [perturbed.model.names[1 + k] for k in perturbed.actuated]
     print(
         "  actuator accelerations: "
