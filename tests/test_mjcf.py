@@ -247,6 +247,36 @@ def test_body_welds_close_where_the_file_is_assembled(tmp_path):
     assert err.value.limb in {"limb2", "limb3", "limb4"}
 
 
+def test_an_explicit_relpose_between_bodies_at_their_joints(tmp_path):
+    # relpose is taken when both bodies sit at their joint's origin: weld each limb's last body to
+    # limb 1's last body (not the jointless platform) with the relative pose they have at home
+    model = pin.buildModelFromMJCF(str(MJCF / "robot.xml"))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, model.referenceConfigurations["home"])
+    o1 = data.oMf[model.getFrameId("limb1_l6", pin.FrameType.BODY)]
+    edits = []
+    for k, body in ((1, "limb2_l6"), (2, "limb3_l6"), (3, "limb4_l3")):
+        rel = o1.inverse() * data.oMf[model.getFrameId(body, pin.FrameType.BODY)]
+        x, y, z, w = pin.Quaternion(rel.rotation).coeffs()
+        pose = " ".join(repr(float(v)) for v in [*rel.translation, w, x, y, z])
+        edits.append(
+            (
+                f'<weld name="closedloop{k}" site1="closedloop{k}_A" site2="closedloop{k}_B" />',
+                f'<weld name="r{k}" body1="limb1_l6" body2="{body}" relpose="{pose}" />',
+            )
+        )
+    limbs, cut = mjcf_limbs(copy_mjcf(tmp_path, *edits) / "robot.xml")
+    assert cut.platform_link == "limb1_l6" and cut.beyond_platform == ()
+    assert [lb.attach_name for lb in limbs[1:]] == ["r1", "r2", "r3"]
+    oMp = []
+    for lb in limbs:
+        d = lb.model.createData()
+        pin.framesForwardKinematics(lb.model, d, lb.home)
+        oMp.append(d.oMf[lb.platform_frame].copy())
+    for m in oMp[1:]:  # closed at home up to the round-off of relpose as written
+        assert np.max(np.abs(pin.log6(oMp[0].inverse() * m).vector)) < 1e-12
+
+
 # --- what Pinocchio would lose, and what pkmtol cannot take -----------------------------------
 
 FOURBAR = """<mujoco model="fourbar">
@@ -432,6 +462,15 @@ BAD_FILES = [
         UnsupportedEqualityError,
         "closedloop3",
         "two sites",
+    ),
+    (
+        (
+            '<weld name="closedloop3" site1="closedloop3_A" site2="closedloop3_B" />',
+            '<weld name="closedloop3" body1="platform" body2="limb4_l3" relpose="0 0 0 one" />',
+        ),
+        MJCFError,
+        "closedloop3",
+        "7 numbers",
     ),
     (
         ('<key name="home" qpos="0.32175', '<key name="home" qpos="0.1 0.32175'),

@@ -264,7 +264,17 @@ def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
                 path, label, "a weld needs body1 (and body2, the other side of the loop) or two sites"
             )
         relpose = eq.get("relpose")
-        explicit = relpose is not None and np.any(np.array([float(x) for x in relpose.split()][3:]) != 0)
+        explicit = False
+        if relpose is not None:
+            try:
+                values = np.array([float(x) for x in relpose.split()])
+            except ValueError:
+                values = np.zeros(0)
+            if values.shape != (7,):
+                raise MJCFError(
+                    path, label, f"relpose '{relpose}': expected 7 numbers (pos x y z, quat w x y z)"
+                )
+            explicit = bool(np.any(values[3:] != 0))  # MuJoCo: an all-zero quaternion means "from qpos0"
         out.append(
             WeldSpec(
                 name=eq.get("name") or f"closedloop{len(out) + 1}",
@@ -272,7 +282,7 @@ def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
                 body2=eq.get("body2"),
                 site1=eq.get("site1"),
                 site2=eq.get("site2"),
-                relpose=bool(explicit),
+                relpose=explicit,
             )
         )
     seen: dict[tuple[str, str], str] = {}
