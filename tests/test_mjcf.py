@@ -473,6 +473,15 @@ BAD_FILES = [
         "7 numbers",
     ),
     (
+        (
+            "  </equality>",
+            '    <weld name="twice" body1="limb1_l6" body2="limb2_l6" />\n  </equality>',
+        ),
+        UnsupportedEqualityError,
+        "closedloop1",
+        "same two moving parts",
+    ),
+    (
         ('<key name="home" qpos="0.32175', '<key name="home" qpos="0.1 0.32175'),
         MJCFError,
         "-",

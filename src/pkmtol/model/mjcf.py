@@ -28,7 +28,7 @@ from typing import Any
 
 import pinocchio as pin
 
-from pkmtol.exceptions import LostElementError, MJCFError
+from pkmtol.exceptions import LostElementError, MJCFError, UnsupportedEqualityError
 from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.mjcf_checks import (
@@ -133,8 +133,9 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
             "no <weld> equality: this is a serial robot, not a parallel mechanism; close each loop with "
             "<equality><weld body1='platform' body2='...'/></equality> (or site1/site2)",
         )
-    for spec in specs:
-        frame_of(path, model, spec, 1), frame_of(path, model, spec, 2)  # both sides are in the model
+    for spec in specs:  # both sides are in the model, and Pinocchio reads relpose as MuJoCo means it
+        frame_of(path, model, spec, 1)
+        frame_of(path, model, spec, 2)
         check_relpose(path, spec, model)
     try:
         model, _, anchors = pin.buildModelAndConstraintsFromMJCF(str(path))
@@ -181,7 +182,14 @@ def _closure_frames(
         sides = (frame_of(path, model, spec, 1), frame_of(path, model, spec, 2))
         joints = tuple(int(model.frames[f].parentJoint) for f in sides)
         match = [c for c in unused if (c.joint1_id, c.joint2_id) == joints]
-        if len(match) != 1:
+        if len(match) > 1:
+            raise UnsupportedEqualityError(
+                path,
+                spec.name,
+                f"weld '{spec.name}' and another weld join the same two moving parts (joints "
+                f"'{model.names[joints[0]]}' and '{model.names[joints[1]]}'): one loop written twice",
+            )
+        if not match:
             raise LostElementError(
                 path,
                 spec.name,
