@@ -15,14 +15,8 @@ in every docstring (K: base, K': platform point with base axes).
 """
 
 from pkmtol.design.fosm import fosm_tolerances
-from pkmtol.design.job import (
-    DesignOptions,
-    DesignResult,
-    MethodDesign,
-    Traditional,
-    allocate,
-    method_design_for,
-)
+from pkmtol.design.job import DesignOptions, DesignResult, Traditional, allocate
+from pkmtol.design.methods import MethodDesign, method_design_for
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
 from pkmtol.design.reliability import exact_reliability, reliability_fosm
 from pkmtol.design.verification import FailureStats, Verification, verify

@@ -126,9 +126,12 @@ class CostDesign:
     iterations: int
 
 
-def _rel_and_grad(J: np.ndarray, sigma: np.ndarray, target_m: float) -> tuple[float, np.ndarray]:
+def _rel_and_grad(
+    J: np.ndarray, sigma: np.ndarray, target_m: float, extra: np.ndarray | None = None
+) -> tuple[float, np.ndarray]:
     a = J * sigma[None, :]
-    r, g = exact_reliability(a @ a.T, target_m, gradient=True)
+    cov = a @ a.T if extra is None else a @ a.T + extra
+    r, g = exact_reliability(cov, target_m, gradient=True)
     assert g is not None
     # ∂R/∂x_i (x = log σ) = σ_i ∂R/∂σ_i = 2 σ_i² J_iᵀ G J_i
     d = 2.0 * sigma**2 * np.einsum("ji,jk,ki->i", J, g, J)
@@ -143,6 +146,7 @@ def cost_optimal(
     start: np.ndarray,
     names: Sequence[str],
     max_rounds: int = 10,
+    extra_cov: np.ndarray | None = None,
 ) -> CostDesign:
     """Minimise total cost subject to exact R ≥ R* at every grid pose.
 
@@ -155,13 +159,15 @@ def cost_optimal(
             meet R* at every pose.
         names: Parameter names (for error messages).
         max_rounds: Cutting-plane rounds at most.
+        extra_cov: Fixed covariance (m, 3, 3) added at each pose [m²] (calibration noise).
 
     Raises:
         InvalidRequestError: no tolerances within the process limits reach R* at every pose;
             the message names the parameters whose lower limits bind.
     """
     m, _, k = J.shape
-    r_tight = np.array([_rel_and_grad(J[j], model.t_min_si, target_m)[0] for j in range(m)])
+    E = [None] * m if extra_cov is None else list(extra_cov)
+    r_tight = np.array([_rel_and_grad(J[j], model.t_min_si, target_m, E[j])[0] for j in range(m)])
     if r_tight.min() < r_star:
         j = int(np.argmin(r_tight))
         contrib = np.linalg.norm(J[j], axis=0) * model.t_min_si
@@ -183,7 +189,7 @@ def cost_optimal(
 
     def r_all(x: np.ndarray) -> np.ndarray:
         s = np.exp(x)
-        return np.array([_rel_and_grad(J[j], s, target_m)[0] for j in range(m)])
+        return np.array([_rel_and_grad(J[j], s, target_m, E[j])[0] for j in range(m)])
 
     active = [int(np.argmin(r_all(x0)))]
     x = x0
@@ -194,9 +200,11 @@ def cost_optimal(
         cons = {
             "type": "ineq",
             "fun": lambda x, act=act: np.array(
-                [_rel_and_grad(J[j], np.exp(x), target_m)[0] - r_star for j in act]
+                [_rel_and_grad(J[j], np.exp(x), target_m, E[j])[0] - r_star for j in act]
             ),
-            "jac": lambda x, act=act: np.array([_rel_and_grad(J[j], np.exp(x), target_m)[1] for j in act]),
+            "jac": lambda x, act=act: np.array(
+                [_rel_and_grad(J[j], np.exp(x), target_m, E[j])[1] for j in act]
+            ),
         }
         res = optimize.minimize(
             objective,

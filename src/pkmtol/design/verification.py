@@ -98,6 +98,12 @@ class Verification:
         exact_unassembled: Samples of the exact subsample whose perturbed mechanism cannot be
             closed (an over-constrained mechanism with errors no rigid motion satisfies: assembly
             errors); they are left out of ``exact``, ``linear_subsample`` and the difference.
+        tilt_linear_rad: Linear tilt Δα of the tool axis of every sample [rad] (None unless the
+            orientation is verified).
+        tilt: Statistics of the linear Δα against Δα* (values in rad; None without a target).
+        tilt_exact: The same on the exact subsample.
+        joint: Linear statistics of ``max(Δλ/Δλ*, Δα/Δα*)`` against 1: its failure fraction is
+            ``P(Δλ > Δλ* or Δα > Δα*)`` (None without an orientation target).
     """
 
     distribution: str
@@ -108,6 +114,10 @@ class Verification:
     dlam_linear_m: np.ndarray
     points_m: np.ndarray
     exact_unassembled: int = 0
+    tilt_linear_rad: np.ndarray | None = None
+    tilt: FailureStats | None = None
+    tilt_exact: FailureStats | None = None
+    joint: FailureStats | None = None
 
 
 def verify(

@@ -68,6 +68,9 @@ class Separation:
         redundancy: ``f + c − 6``: number of linearly dependent wrenches (over-constraint).
         incompatible_map: Shape (f + c, n): ``Y − Wᵀ twist_map``; non-zero columns are errors that
             an over-constrained mechanism cannot assemble with rigid links (assembly errors).
+        actuation_map: Shape (6, f): platform twist per unit actuator motion [m or rad per m or
+            rad], ``W⁻ᵀ [diag(Λ_a); 0]`` (from Eq. 7 with η = 0); a change ``Δu`` of the actuator
+            commands moves the platform by ``actuation_map · Δu``.
     """
 
     pose: Pose
@@ -89,6 +92,7 @@ class Separation:
     J_total: np.ndarray
     redundancy: int = 0
     incompatible_map: np.ndarray | None = None
+    actuation_map: np.ndarray | None = None
 
 
 def null_space(a: np.ndarray) -> np.ndarray:
@@ -206,4 +210,5 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         J_total=to_p @ twist_map,
         redundancy=W.shape[1] - 6,
         incompatible_map=incompatible,
+        actuation_map=W_inv_T[:, :f] * lam_arr[None, :],
     )

@@ -16,7 +16,6 @@ left alone, so this works headless and inside notebooks alike.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,8 +24,9 @@ from typing import Any
 import numpy as np
 
 from pkmtol.design.job import DesignResult
-from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
+from pkmtol.exceptions import InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
+from pkmtol.present.plotting import new_figure, render
 
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
@@ -51,26 +51,6 @@ _GREEK = {
 }
 
 
-def _mpl() -> tuple[Any, Any]:
-    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do."""
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError as err:
-        raise FiguresError(
-            f"the figures need matplotlib ({err}); install it with "
-            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`)"
-        ) from err
-    return Figure, FigureCanvasAgg
-
-
-def _new_figure(size: tuple[float, float]) -> Any:
-    figure_cls, canvas_cls = _mpl()
-    fig = figure_cls(figsize=size, layout="constrained")
-    canvas_cls(fig)
-    return fig
-
-
 def tex_name(name: str) -> str:
     """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``)."""
     if "_{" not in name:
@@ -89,7 +69,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
     unc = np.asarray(result.uncompensatable, dtype=int)
     params = [result.pset.parameters[i] for i in unc]
     values = np.asarray(result.sensitivity, dtype=float)[unc]
-    fig = _new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
+    fig = new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     colours = [_unit_colour(p.unit) for p in params]
@@ -132,7 +112,7 @@ def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins:
     edges = np.linspace(0.0, hi, bins + 1)
     counts, _ = np.histogram(dl, edges)
     centres = (edges[:-1] + edges[1:]) / 2
-    fig = _new_figure((7.0, 4.2))
+    fig = new_figure((7.0, 4.2))
     ax = fig.add_subplot()
     colours = [FAILED_COLOUR if c > target else SAFE_COLOUR for c in centres]
     ax.bar(centres, counts, width=np.diff(edges), color=colours, edgecolor="black", linewidth=0.3)
@@ -192,7 +172,7 @@ def tolerance_figure(result: DesignResult) -> Any:
         zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(), strict=True)
     )
     trad = np.array([trad_of.get(int(i), math.nan) for i in unc], dtype=float) * 1e6
-    fig = _new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
+    fig = new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     w = 0.4
@@ -246,17 +226,6 @@ def tolerance_figure(result: DesignResult) -> Any:
     return fig
 
 
-def _render(fig: Any, fmt: str, dpi: int) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(
-        buf,
-        format=fmt,
-        dpi=dpi,
-        metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
-    )
-    return buf.getvalue()
-
-
 def make_figures(result: DesignResult) -> dict[str, Any]:
     """Draw the three figures, by file stem (see :data:`FIGURES`)."""
     return {
@@ -298,7 +267,7 @@ def write_figures(
     rendered: list[tuple[Path, bytes]] = []
     for stem, fig in make_figures(result).items():
         for fmt in formats:
-            rendered.append((out / f"{stem}.{fmt}", _render(fig, fmt, dpi)))
+            rendered.append((out / f"{stem}.{fmt}", render(fig, fmt, dpi)))
     for path, data in rendered:
         write_atomic(path, data)
     return [path for path, _ in rendered]
