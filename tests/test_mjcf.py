@@ -566,6 +566,18 @@ def test_bad_mjcf_table_raises_a_named_error(tmp_path, old, new, error, words):
         load_mechanism(folder)
 
 
+def test_one_limb_is_not_a_parallel_mechanism(tmp_path):
+    folder = tmp_path / "one"
+    folder.mkdir()
+    toml = (MJCF / "mechanism.toml").read_text(encoding="utf-8")
+    start, end = toml.index("[mjcf]"), toml.index("[reference_point]")
+    one = '[[limbs]]\nname = "limb1"\nurdf = "limb1.urdf"\n\n'
+    (folder / "mechanism.toml").write_text(toml[:start] + one + toml[end:], encoding="utf-8")
+    with pytest.raises(MechanismFormatError, match="at least two") as err:
+        load_mechanism(folder)
+    assert err.value.key == "limbs"
+
+
 def test_check_command_reads_the_mjcf_folder(capsys):
     assert main(["check", str(MJCF)]) == 0
     out = capsys.readouterr().out
