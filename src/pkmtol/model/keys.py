@@ -40,6 +40,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "design",
             "limbs",
             "closed_loop",
+            "mjcf",
             "cost",
             "calibration",
         }
@@ -52,6 +53,8 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
     "limbs[].dh": frozenset({"joint_types", "joint_names", "links", "end", "limits"}),
     "closed_loop": frozenset({"urdf", "sidecar", "platform_link", "limbs", "home"}),
     "closed_loop.home": ANY,
+    "mjcf": frozenset({"file", "platform_link", "limbs", "home", "keyframe", "actuated"}),
+    "mjcf.home": ANY,
     "cost": frozenset({"length", "angle", "parameters"}),
     "cost.length": _COST_FIELDS,
     "cost.angle": _COST_FIELDS,

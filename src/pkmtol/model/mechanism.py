@@ -18,6 +18,7 @@ import pinocchio as pin
 
 import pkmtol.values as values
 from pkmtol.exceptions import InvalidArgumentError, PlatformMismatchError, URDFError
+from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.taskspace import TaskSpace
 
@@ -106,6 +107,16 @@ class Mechanism:
                 return limb
         names = ", ".join(x.name for x in self.limbs)
         raise InvalidArgumentError("name", name, f"no such limb (limbs: {names})")
+
+    def constraint_models(self, models: Sequence[pin.Model] | None = None) -> ConstrainedModel:
+        """The mechanism as one ``pin.Model`` plus a ``FrameAnchorConstraintModel`` per loop (Pinocchio 4).
+
+        Args:
+            models: Replacement limb models (e.g. perturbed); default: the limbs'.
+
+        See :func:`pkmtol.model.constraints.constraint_models`.
+        """
+        return constraint_models(self, models)
 
     @classmethod
     def from_models(
