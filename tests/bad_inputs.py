@@ -225,7 +225,7 @@ CASES: list[Case] = [
     Case("TOML keys", "a cost field that is not a number", toml("[design]", '[cost.angle]\nB = "cheap"\n\n[design]'), MF, ("cost.angle.B", "expected float or int")),
     Case("TOML keys", "a required key missing (`name`)", toml('name = "r2rps_ups"\n', ""), MF, ("'name'", "missing"), {"key": "name"}),
     Case("TOML keys", "an empty mechanism name", toml('name = "r2rps_ups"', 'name = ""'), MF, ("'name'", "must not be empty"), {"key": "name"}),
-    Case("TOML keys", "both `[[limbs]]` and `[closed_loop]`", toml("[design]", '[closed_loop]\nurdf = "robot.urdf"\n\n[design]'), MF, ("'limbs'", "not both"), {"key": "limbs"}),
+    Case("TOML keys", "both `[[limbs]]` and `[closed_loop]`", toml("[design]", '[closed_loop]\nurdf = "robot.urdf"\n\n[design]'), MF, ("'closed_loop'", "give the limbs one way"), {"key": "closed_loop"}),
     # ---- numbers
     Case("Numbers", "`nan` in the reference point", toml("position_m = [0.0, 0.0, 0.3]", "position_m = [0.0, nan, 0.3]"), MF, ("reference_point.position_m", "finite"), {"key": "reference_point.position_m[1]"}),
     Case("Numbers", "`inf` in a home", toml("home = [0.0, 0.0, 0.75]", "home = [0.0, 0.0, inf]"), MF, ("limbs[3].home", "finite"), {"key": "limbs[3].home[2]"}),
