@@ -14,7 +14,22 @@ import numpy as np
 
 
 class PkmtolError(Exception):
-    """Base class of every error raised by pkmtol on bad input or an impossible request."""
+    """Base class of every error raised by pkmtol on bad input or an impossible request.
+
+    Errors pickle with their message and attributes (a worker process or a Dask worker can raise
+    them back to the caller), although their constructors take other arguments than the message.
+    """
+
+    def __reduce__(self) -> tuple:
+        return (_rebuild, (type(self), self.args, self.__dict__))
+
+
+def _rebuild(cls: type[PkmtolError], args: tuple, state: dict) -> PkmtolError:
+    """An error of class ``cls`` with message ``args`` and attributes ``state``, without its constructor."""
+    err = cls.__new__(cls)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
 
 
 # --- mechanism description -------------------------------------------------------------
@@ -259,3 +274,18 @@ class ViewerError(PkmtolError):
 
 class FiguresError(PkmtolError):
     """Figures cannot be made: matplotlib is missing (``pip install 'pkmtol[plots]'``)."""
+
+
+# --- execution and studies ------------------------------------------------------------------------
+
+
+class ExecutorError(PkmtolError):
+    """The executor cannot run: a bad worker count, Dask missing, or no scheduler at the address.
+
+    Attributes:
+        culprit: The offending setting (``workers``, ``dask``, ``n_chunks``).
+    """
+
+    def __init__(self, culprit: str, problem: str) -> None:
+        self.culprit = culprit
+        super().__init__(f"{culprit}: {problem}")
