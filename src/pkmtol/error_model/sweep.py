@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 from tqdm import tqdm
 
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.error_model.separation import Separation, separate
+from pkmtol.error_model.separation import Separation, separate_many
+from pkmtol.exceptions import KinematicsError
+from pkmtol.kinematics.batch import BatchChain, Solutions
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.model.mechanism import Mechanism
 
@@ -17,6 +19,10 @@ from pkmtol.model.mechanism import Mechanism
 ZERO_TOLERANCE = 1e-9
 
 CLASSES = ("absorbed", "compensatable", "uncompensatable")
+#: Poses solved together (bounds the solver's working memory).
+CHUNK = 512
+#: A continuation wave takes the points within this factor of its reach (see :func:`sweep`).
+REACH = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,34 +95,119 @@ def sweep(
 ) -> Sweep:
     """Solve the inverse kinematics at every point and separate the errors there.
 
+    The points are solved in batches (:class:`pkmtol.kinematics.batch.BatchChain`,
+    :func:`pkmtol.error_model.separation.separate_many`). Without ``guesses``, they are reached by
+    continuation: the first point from the refined home, then, wave after wave, every point within
+    reach of the solved ones from a tangent step off its nearest solved point (a wave takes the
+    points no further from the solved set than the larger of the grid's nearest-neighbour spacing
+    and the closest unsolved point).
+
     Args:
         mechanism: The mechanism.
         pset: The error-parameter set.
         points_m: Shape (m, 3): positions of P in K [m].
-        chain: Solver workspace (created if None).
-        guesses: Shape (m, Σ nq): initial guesses; default: a tangent step from the previous
-            point's solution (the first point starts from the refined home).
+        chain: Solver workspace (created if None); its models and limit check are used.
+        guesses: Shape (m, Σ nq): initial guesses; default: continuation as above.
         progress: Show a progress bar.
+
+    Raises:
+        KinematicsError: the error of the first point (in point order) that cannot be solved or
+            separated — unreachable, outside a joint limit, or singular.
     """
     chain = chain or ClosedChain(mechanism)
-    poses: list[Pose] = []
-    seps = []
-    it = tqdm(points_m, desc="poses", unit="pose", disable=not progress, leave=False)
-    for k, p in enumerate(it):
-        if guesses is not None:
-            q0 = guesses[k]
-        elif poses:
-            q0 = chain.predict(poses[-1], p)  # tangent step from the previous point
-        else:
-            q0 = chain.home()
-        pose = chain.inverse(p, q0)
-        poses.append(pose)
-        seps.append(separate(mechanism, pset, chain, pose))
+    batch = BatchChain(mechanism, chain=chain)
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    m = len(points)
+    bar = tqdm(total=m, desc="poses", unit="pose", disable=not progress, leave=False)
+    results: list[Separation | KinematicsError | None] = [None] * m
+    if guesses is not None:
+        q0 = np.asarray(guesses, dtype=float).reshape(m, -1)
+        for start in range(0, m, CHUNK):
+            part = slice(start, min(start + CHUNK, m))
+            sols = batch.inverse(points[part], q0[part])
+            results[part] = separate_many(mechanism, pset, batch, sols)
+            bar.update(part.stop - part.start)
+    else:
+        waves, parts = [], []
+        for wave, sols in _continuation(batch, points, chain.home()):
+            waves.append(wave)
+            parts.append(sols)
+            bar.update(len(wave))
+        order = np.concatenate(waves)
+        solved = Solutions.concatenate(parts).take(np.argsort(order))
+        for start in range(0, len(order), CHUNK):
+            part = slice(start, min(start + CHUNK, len(order)))
+            results[part] = separate_many(
+                mechanism, pset, batch, solved.take(np.arange(part.start, part.stop))
+            )
+    bar.close()
+    failed = next((r for r in results if not isinstance(r, Separation)), None)
+    if failed is not None:
+        raise failed if isinstance(failed, KinematicsError) else AssertionError("a point was not solved")
+    seps = [r for r in results if isinstance(r, Separation)]
     return Sweep(
-        points_m=np.asarray(points_m, dtype=float),
-        poses=tuple(poses),
+        points_m=points,
+        poses=tuple(s.pose for s in seps),
         separations=tuple(seps),
-        J=np.array([s.J for s in seps]),
-        J_total=np.array([s.J_total for s in seps]),
+        J=np.array([s.J for s in seps]).reshape(m, 3, len(pset)),
+        J_total=np.array([s.J_total for s in seps]).reshape(m, 3, len(pset)),
         W_condition=np.array([s.W_condition for s in seps]),
     )
+
+
+def _continuation(
+    batch: BatchChain, points: np.ndarray, home: np.ndarray
+) -> Iterator[tuple[np.ndarray, Solutions]]:
+    """Waves of points solved from their nearest solved neighbour (``(indices, solutions)`` each).
+
+    Stops at the first wave whose solutions all fail when nothing else is left to try from.
+    """
+    m = len(points)
+    first = batch.inverse(points[:1], home[None])
+    yield np.zeros(1, dtype=int), first
+    if m == 1 or first.errors[0] is not None:
+        return
+    spacing = _nearest_neighbour_spacing(points)
+    # nearest solved point (index into the solved list) and its distance, for every point
+    solved_q = [first.q[0]]
+    solved_p = [first.p_m[0]]
+    solved_dir = [first.system_inverse[0][:, -3:]]
+    near_d = np.linalg.norm(points - points[0], axis=1)
+    near_i = np.zeros(m, dtype=int)
+    todo = np.ones(m, dtype=bool)
+    todo[0] = False
+    while todo.any():
+        cand = np.flatnonzero(todo)
+        reach = max(spacing, float(near_d[cand].min())) * REACH
+        wave = cand[near_d[cand] <= reach][:CHUNK]
+        parents = near_i[wave]
+        guesses = np.array(
+            [
+                solved_q[j] + solved_dir[j] @ (points[k] - solved_p[j])
+                for k, j in zip(wave, parents, strict=True)
+            ]
+        )
+        sols = batch.inverse(points[wave], guesses)
+        todo[wave] = False
+        yield wave, sols
+        new = [pos for pos in range(len(wave)) if sols.errors[pos] is None]
+        for pos in new:
+            solved_q.append(sols.q[pos])
+            solved_p.append(sols.p_m[pos])
+            solved_dir.append(sols.system_inverse[pos][:, -3:])
+        if new:
+            d = np.linalg.norm(points[:, None, :] - points[wave[new]][None], axis=2)  # (m, new)
+            best = d.argmin(axis=1)
+            closer = d[np.arange(m), best] < near_d
+            near_i[closer] = len(solved_q) - len(new) + best[closer]
+            near_d[closer] = d[np.arange(m), best][closer]
+
+
+def _nearest_neighbour_spacing(points: np.ndarray) -> float:
+    """The largest distance from a point to its nearest other point [m]."""
+    worst = 0.0
+    for start in range(0, len(points), CHUNK):
+        d = np.linalg.norm(points[start : start + CHUNK, None, :] - points[None], axis=2)
+        d[np.arange(d.shape[0]), np.arange(start, start + d.shape[0])] = np.inf
+        worst = max(worst, float(d.min(axis=1).max()))
+    return worst
