@@ -5,6 +5,10 @@ FOSM treats ``Δλ = ‖J η_c‖`` as a normal variable; it is a norm. For Gaus
 ``Σ = J diag(σ²) Jᵀ``. :func:`scale_design` keeps the equal-effect *shape* ``σ_i ∝ 1/ω_i`` and
 scales it by root finding so that the exact R equals the target at the worst pose, at every grid
 pose (the minimum over the grid), or on average over the grid.
+
+:func:`claimed_vs_true` runs the exact reliabilities of each β on an executor (one chunk per β)
+and draws its Monte Carlo cells in the caller, in chunks of :data:`LINEAR_CHUNK` samples from the
+caller's generator, β by β and cell by cell as one draw per cell would.
 """
 
 from __future__ import annotations
@@ -13,11 +17,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import special
 
-from pkmtol.design.reliability import exact_reliability
-from pkmtol.design.verification import failure_stats, sample_errors
+from pkmtol.design.reliability import exact_reliability_many
+from pkmtol.design.verification import LINEAR_CHUNK, failure_counts, sample_errors
 from pkmtol.exceptions import InvalidRequestError
+from pkmtol.executor import Executor, map_chunks
 
 CRITERIA = ("worst", "every", "average")
 
@@ -26,7 +31,7 @@ def grid_reliability(J: np.ndarray, sigma: np.ndarray, target_m: float) -> np.nd
     """Exact Gaussian reliability at each pose: ``J`` (m, 3, k), ``σ`` (k,) → (m,)."""
     a = J * np.asarray(sigma)[None, None, :]
     cov = a @ np.swapaxes(a, 1, 2)
-    return np.array([exact_reliability(c, target_m)[0] for c in cov])
+    return exact_reliability_many(cov, target_m)[0]
 
 
 def criterion_value(r: np.ndarray, criterion: str, worst_index: int) -> float:
@@ -98,6 +103,8 @@ def scale_design(
         hi += 2.0
         if hi > 60:
             raise InvalidRequestError("the design reaches the target at any scale: Δλ does not depend on it")
+    from scipy import optimize  # only the exact and cost designs find roots; keep it out of start-up
+
     log_s = optimize.brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12)
     s = math.exp(log_s)
     sigma = np.where(finite, shape * s, np.inf)
@@ -145,6 +152,7 @@ def claimed_vs_true(
     target_m: float,
     samples: int,
     rng: np.random.Generator,
+    executor: Executor | None = None,
 ) -> list[ClaimRow]:
     """Claimed ``Φ(β)`` vs exact and Monte Carlo reliabilities of the FOSM designs.
 
@@ -156,26 +164,32 @@ def claimed_vs_true(
         target_m: Δλ* [m].
         samples: Monte Carlo samples per cell.
         rng: Random generator.
+        executor: Where the exact reliabilities run, one chunk per β (None: serial).
     """
+    sigmas = [np.where(np.isfinite(sigma), sigma, 0.0) for sigma in tolerances.T]
+    exact = map_chunks(_exact_cells, [(J_worst, J_task, s, target_m) for s in sigmas], executor)
     rows = []
     m = J_task.shape[0]
-    for b, sigma in zip(betas, tolerances.T, strict=True):
-        s = np.where(np.isfinite(sigma), sigma, 0.0)
-        r_task = grid_reliability(J_task, s, target_m)
+    for b, s, (r_worst, r_task) in zip(betas, sigmas, exact, strict=True):
         cells = []
         for dist in ("uniform_sigma", "uniform_sqrt3_sigma"):
-            eta = sample_errors(dist, s, samples, rng)
-            dl_w = np.linalg.norm(eta @ J_worst.T, axis=1)
-            idx = np.arange(samples) % m
-            dl_t = np.linalg.norm(np.einsum("sij,sj->si", J_task[idx], eta), axis=1)
-            for dl in (dl_w, dl_t):
-                f = failure_stats(dl, target_m)
+            fail_w = fail_t = 0
+            for start in range(0, samples, LINEAR_CHUNK):
+                count = min(LINEAR_CHUNK, samples - start)
+                eta = sample_errors(dist, s, count, rng)
+                dl_w = np.linalg.norm(eta @ J_worst.T, axis=1)
+                idx = np.arange(start, start + count) % m
+                dl_t = np.linalg.norm(np.einsum("sij,sj->si", J_task[idx], eta), axis=1)
+                fail_w += int(np.sum(dl_w > target_m))
+                fail_t += int(np.sum(dl_t > target_m))
+            for fails in (fail_w, fail_t):
+                f = failure_counts(fails, samples)
                 cells.append((f.reliability, 1.0 - f.failure_ci95[1], 1.0 - f.failure_ci95[0]))
         rows.append(
             ClaimRow(
                 beta=b,
-                claimed=float(stats.norm.cdf(b)),
-                exact_worst=float(grid_reliability(J_worst[None], s, target_m)[0]),
+                claimed=float(special.ndtr(b)),
+                exact_worst=r_worst,
                 exact_task_space=float(r_task.mean()),
                 exact_task_space_min=float(r_task.min()),
                 uniform_sigma_worst=cells[0],
@@ -185,3 +199,9 @@ def claimed_vs_true(
             )
         )
     return rows
+
+
+def _exact_cells(task: tuple[np.ndarray, np.ndarray, np.ndarray, float]) -> tuple[float, np.ndarray]:
+    """Exact reliability at the worst pose and at each task-space pose of one design (a chunk)."""
+    J_worst, J_task, s, target_m = task
+    return float(grid_reliability(J_worst[None], s, target_m)[0]), grid_reliability(J_task, s, target_m)
