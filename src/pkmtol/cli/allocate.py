@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from pkmtol.cli.common import add_executor_options, executor_from
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError
 from pkmtol.model.loader import load_mechanism
@@ -81,6 +82,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         help="also write the 3D scene as a self-contained HTML page to FILE",
     )
     p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
+    add_executor_options(p)
     p.set_defaults(run=_run)
 
 
@@ -106,6 +108,7 @@ def _run(args: argparse.Namespace) -> int:
         method=args.method,
         criterion=args.criterion,
         progress=not args.no_progress and sys.stderr.isatty(),
+        executor=executor_from(args),
     )
     out = args.out if args.out is not None else Path("out") / mech.name
     check_output_folder(out)
