@@ -289,3 +289,15 @@ class ExecutorError(PkmtolError):
     def __init__(self, culprit: str, problem: str) -> None:
         self.culprit = culprit
         super().__init__(f"{culprit}: {problem}")
+
+
+class SweepSpecError(PkmtolError):
+    """A ``--vary KEY=START:STOP:N`` specification of ``pkmtol sweep`` cannot be used.
+
+    Attributes:
+        spec: The specification as given.
+    """
+
+    def __init__(self, spec: str, problem: str) -> None:
+        self.spec = spec
+        super().__init__(f"--vary {spec!r}: {problem}")

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,8 +20,21 @@ from pkmtol.model.taskspace import TaskSpace
 from pkmtol.units import parse_length
 
 
-def load_mechanism(folder: Path | str) -> Mechanism:
+def load_mechanism(
+    folder: Path | str,
+    doc: Mapping[str, Any] | None = None,
+    urdf_texts: Mapping[str, str] | None = None,
+    check_home_closure: bool = True,
+) -> Mechanism:
     """Load ``<folder>/mechanism.toml`` and its limb URDFs.
+
+    Args:
+        folder: The robot folder.
+        doc: The parsed TOML to use instead of the file's (a design variant); paths in it are
+            relative to ``folder``.
+        urdf_texts: Per limb name, URDF text to use instead of the limb's file.
+        check_home_closure: Check that the platform frames coincide at ``home`` (see
+            :meth:`Mechanism.from_limbs`).
 
     Raises:
         MechanismFormatError: the folder has no mechanism.toml, or a key is missing or mistyped.
@@ -29,6 +44,8 @@ def load_mechanism(folder: Path | str) -> Mechanism:
     """
     folder = Path(folder)
     path = folder / "mechanism.toml"
+    if doc is not None:
+        return _from_doc(folder, path, dict(doc), urdf_texts or {}, check_home_closure)
     if not folder.is_dir():
         raise MechanismFormatError(
             path, "-", f"'{folder}' is not a folder; give a robot folder such as robots/r2rps_ups"
@@ -41,6 +58,12 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
+    return _from_doc(folder, path, doc, urdf_texts or {}, check_home_closure)
+
+
+def _from_doc(
+    folder: Path, path: Path, doc: dict[str, Any], urdf_texts: Mapping[str, str], check_home_closure: bool
+) -> Mechanism:
     r = TomlReader(path, doc)
     name = r.get("name", str)
     platform_link = r.get("platform_link", str, default="platform")
@@ -70,7 +93,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         actuated = lr.get("actuated", list, default=[])
         home = lr.get("home", list, default=None)
         dh = read_dh(lr) if "dh" in ld else None
-        model, visual = load_urdf(lname, urdf)
+        model, visual = load_urdf(lname, urdf, urdf_texts.get(lname))
         limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
     return Mechanism.from_limbs(
         name,
@@ -83,6 +106,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         root=folder,
         description=r.get("description", str, default=""),
         extra={"cost": r.get("cost", dict, default={})},
+        check_home_closure=check_home_closure,
     )
 
 

@@ -11,11 +11,15 @@ import pinocchio as pin
 from pkmtol.exceptions import MechanismFormatError, URDFError
 
 
-def load_urdf(limb: str, path: Path) -> tuple[pin.Model, Any]:
-    """Read a limb URDF: ``(pin.Model, visual GeometryModel or None)``; raises URDFError naming the limb."""
-    if not path.is_file():
+def load_urdf(limb: str, path: Path, text: str | None = None) -> tuple[pin.Model, Any]:
+    """Read a limb URDF: ``(pin.Model, visual GeometryModel or None)``; raises URDFError naming the limb.
+
+    ``text`` replaces the file's content (a URDF made in memory, e.g. from a changed D–H table).
+    """
+    if text is None and not path.is_file():
         raise URDFError(limb, path, "file not found; check the 'urdf' entry of this limb in mechanism.toml")
-    text = path.read_text(encoding="utf-8")
+    if text is None:
+        text = path.read_text(encoding="utf-8")
     import xml.etree.ElementTree as ET
 
     try:

@@ -64,7 +64,8 @@ def _mpl() -> tuple[Any, Any]:
     return Figure, FigureCanvasAgg
 
 
-def _new_figure(size: tuple[float, float]) -> Any:
+def new_figure(size: tuple[float, float]) -> Any:
+    """An empty figure of ``size`` inches on its own Agg canvas (FiguresError without matplotlib)."""
     figure_cls, canvas_cls = _mpl()
     fig = figure_cls(figsize=size, layout="constrained")
     canvas_cls(fig)
@@ -89,7 +90,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
     unc = np.asarray(result.uncompensatable, dtype=int)
     params = [result.pset.parameters[i] for i in unc]
     values = np.asarray(result.sensitivity, dtype=float)[unc]
-    fig = _new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
+    fig = new_figure((max(6.0, 0.45 * len(unc) + 2.0), 4.0))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     colours = [_unit_colour(p.unit) for p in params]
@@ -132,7 +133,7 @@ def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins:
     edges = np.linspace(0.0, hi, bins + 1)
     counts, _ = np.histogram(dl, edges)
     centres = (edges[:-1] + edges[1:]) / 2
-    fig = _new_figure((7.0, 4.2))
+    fig = new_figure((7.0, 4.2))
     ax = fig.add_subplot()
     colours = [FAILED_COLOUR if c > target else SAFE_COLOUR for c in centres]
     ax.bar(centres, counts, width=np.diff(edges), color=colours, edgecolor="black", linewidth=0.3)
@@ -192,7 +193,7 @@ def tolerance_figure(result: DesignResult) -> Any:
         zip(result.traditional.columns.tolist(), result.traditional.tolerance.tolist(), strict=True)
     )
     trad = np.array([trad_of.get(int(i), math.nan) for i in unc], dtype=float) * 1e6
-    fig = _new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
+    fig = new_figure((max(6.5, 0.5 * len(unc) + 2.5), 4.4))
     ax = fig.add_subplot()
     x = np.arange(len(unc))
     w = 0.4
@@ -246,7 +247,8 @@ def tolerance_figure(result: DesignResult) -> Any:
     return fig
 
 
-def _render(fig: Any, fmt: str, dpi: int) -> bytes:
+def render(fig: Any, fmt: str, dpi: int) -> bytes:
+    """``fig`` as the bytes of a ``fmt`` file (png, svg, pdf) without a date or software stamp."""
     buf = io.BytesIO()
     fig.savefig(
         buf,
@@ -298,7 +300,7 @@ def write_figures(
     rendered: list[tuple[Path, bytes]] = []
     for stem, fig in make_figures(result).items():
         for fmt in formats:
-            rendered.append((out / f"{stem}.{fmt}", _render(fig, fmt, dpi)))
+            rendered.append((out / f"{stem}.{fmt}", render(fig, fmt, dpi)))
     for path, data in rendered:
         write_atomic(path, data)
     return [path for path, _ in rendered]
