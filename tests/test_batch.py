@@ -113,7 +113,16 @@ def test_grid_sweep_matches_the_sequential_per_pose_sweep(robot):
     for b, p, s in zip(batched.separations, poses, seps, strict=True):
         np.testing.assert_allclose(b.pose.q_all, p.q_all, rtol=0, atol=1e-12)
         scale = max(1.0, float(np.abs(s.J_total).max()))
-        for name in ("J", "J_total", "twist_map", "uncompensated_map", "correction", "error_columns"):
+        names = (
+            "J",
+            "J_total",
+            "twist_map",
+            "uncompensated_map",
+            "correction",
+            "error_columns",
+            "actuation_map",
+        )
+        for name in names:
             np.testing.assert_allclose(
                 getattr(b, name), getattr(s, name), rtol=0, atol=1e-11 * scale, err_msg=name
             )

@@ -95,7 +95,14 @@ def run_job(job, executor):
     rng = np.random.default_rng(5)
     ver = verify_all(mech, pset, rnd, unc, sigma, 5e-5, 800, 450, rng, executor=executor)
     claims = claimed_vs_true(
-        grid.J[0][:, unc], rnd.J[:, :, unc], np.outer(sigma, [1.0, 0.5]), (1.0, 2.0), 5e-5, 500, rng, executor
+        grid.J[0][:, unc],
+        rnd.J[:, :, unc],
+        np.outer(sigma, [1.0, 0.5]),
+        (1.0, 2.0),
+        5e-5,
+        500,
+        rng,
+        executor=executor,
     )
     return ver, claims
 

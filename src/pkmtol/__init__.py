@@ -24,14 +24,8 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the names as static tools see them; at run time they load on first use
     from pkmtol.design.fosm import fosm_tolerances
-    from pkmtol.design.job import (
-        DesignOptions,
-        DesignResult,
-        MethodDesign,
-        Traditional,
-        allocate,
-        method_design_for,
-    )
+    from pkmtol.design.job import DesignOptions, DesignResult, Traditional, allocate
+    from pkmtol.design.methods import MethodDesign, method_design_for
     from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
     from pkmtol.design.reliability import exact_reliability, reliability_fosm
     from pkmtol.design.verification import FailureStats, Verification, verify
@@ -84,7 +78,7 @@ _EXPORTS = {
     "Limb": "pkmtol.model.limb",
     "Mechanism": "pkmtol.model.mechanism",
     "MechanismFormatError": "pkmtol.exceptions",
-    "MethodDesign": "pkmtol.design.job",
+    "MethodDesign": "pkmtol.design.methods",
     "MobilityError": "pkmtol.exceptions",
     "NoLoopError": "pkmtol.exceptions",
     "OutputError": "pkmtol.exceptions",
@@ -111,7 +105,7 @@ _EXPORTS = {
     "fosm_tolerances": "pkmtol.design.fosm",
     "load_closed_loop": "pkmtol.model.closed_loop",
     "load_mechanism": "pkmtol.model.loader",
-    "method_design_for": "pkmtol.design.job",
+    "method_design_for": "pkmtol.design.methods",
     "norm_moments": "pkmtol.error_model.accuracy",
     "parameter_set": "pkmtol.error_model.parameters",
     "perturbed_limb_models": "pkmtol.kinematics.perturbation",

@@ -301,3 +301,55 @@ class SweepSpecError(PkmtolError):
     def __init__(self, spec: str, problem: str) -> None:
         self.spec = spec
         super().__init__(f"--vary {spec!r}: {problem}")
+
+
+# --- calibration ------------------------------------------------------------------------------
+
+
+class CalibrationError(PkmtolError):
+    """Base class of calibration failures (plan, measurements, identification)."""
+
+
+class IdentificationError(CalibrationError):
+    """The identification cannot proceed: the model cannot be solved at a pose, or no step helps."""
+
+
+class MeasurementFileError(CalibrationError):
+    """A measurement or plan file is malformed: a column, a unit, a value or a row is wrong.
+
+    Attributes:
+        path: The file.
+        line: 1-based line of the culprit (0 for the header or the whole file).
+        column: The column at fault ("" when the whole row or file is).
+    """
+
+    def __init__(self, path: Path | str, line: int, column: str, problem: str) -> None:
+        self.path = Path(path)
+        self.line = line
+        self.column = column
+        where = f" line {line}" if line else ""
+        col = f" column '{column}'" if column else ""
+        super().__init__(f"{self.path}:{where}{col}: {problem}")
+
+
+class NoiseFloorError(CalibrationError):
+    """The calibration's measurement noise alone exceeds the accuracy target at the design β.
+
+    Attributes:
+        noise_m: Tracker noise σ_m per coordinate [m].
+        poses: Calibration poses N.
+        floor: The smallest target FOSM can meet with this noise (``β √v``) [m or rad].
+        target: The target asked for [m or rad].
+    """
+
+    def __init__(
+        self, noise_m: float, poses: int, floor: float, target: float, beta: float, what: str = "Δλ at P"
+    ) -> None:
+        self.noise_m, self.poses, self.floor, self.target = noise_m, poses, floor, target
+        unit, f = ("µrad", 1e6) if what != "Δλ at P" else ("µm", 1e6)
+        super().__init__(
+            f"the tracker noise of {1e3 * noise_m:.4g} mm per coordinate over {poses} calibration poses "
+            f"alone puts a floor of {f * floor:.4g} {unit} on {what} at β = {beta:g}, above the target "
+            f"{f * target:.4g} {unit}: no tolerance can meet it — measure more poses (D-optimal), use a "
+            "more precise tracker, or relax the target or β"
+        )

@@ -6,6 +6,7 @@ lengths in mm or µm, angles in mrad (DESIGN.md, "Units").
 
 from __future__ import annotations
 
+import math
 import re
 from decimal import Decimal
 
@@ -59,3 +60,50 @@ def display(value_si: float, unit_si: str) -> float:
 def display_unit(unit_si: str) -> str:
     """The display unit (``"mm"`` or ``"mrad"``) of an SI unit."""
     return DISPLAY[unit_si][1]
+
+
+#: Angle units and their factor to the radian.
+ANGLE_UNITS = {
+    "rad": 1.0,
+    "mrad": 1e-3,
+    "urad": 1e-6,
+    "µrad": 1e-6,
+    "μrad": 1e-6,
+    "deg": math.pi / 180.0,
+    "arcmin": math.pi / 180.0 / 60.0,
+    "arcsec": math.pi / 180.0 / 3600.0,
+}
+
+
+def parse_angle(value: str | float | int, what: str = "angle") -> float:
+    """Parse an angle such as ``"0.1 mrad"``, ``"20 arcsec"`` or ``"0.5 deg"``; a unit is required.
+
+    Returns:
+        The angle [rad].
+
+    Raises:
+        InvalidRequestError: not a number with a known angle unit.
+
+    >>> parse_angle("0.5 mrad")
+    0.0005
+    >>> round(parse_angle("1 deg"), 12)
+    0.017453292520
+    """
+    if isinstance(value, bool) or isinstance(value, int | float):
+        raise InvalidRequestError(
+            f"{what}: give the angle with its unit, e.g. '0.1 mrad' or '20 arcsec', got {value!r}"
+        )
+    m = _NUMBER_UNIT.match(str(value))
+    if not m or not m.group(2):
+        raise InvalidRequestError(
+            f"{what}: cannot read {value!r}; write it as e.g. '0.1 mrad' or '20 arcsec'"
+        )
+    number, unit = m.groups()
+    if unit not in ANGLE_UNITS:
+        raise InvalidRequestError(
+            f"{what}: unknown unit {unit!r} in {value!r}; use one of {', '.join(ANGLE_UNITS)}"
+        )
+    if unit in ("mrad", "urad", "µrad", "μrad", "rad"):
+        exponent = {"rad": 0, "mrad": -3}.get(unit, -6)
+        return float(Decimal(number).scaleb(exponent))
+    return float(number) * ANGLE_UNITS[unit]

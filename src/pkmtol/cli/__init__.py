@@ -16,12 +16,12 @@ import sys
 from collections.abc import Sequence
 
 from pkmtol import __version__
-from pkmtol.cli import allocate, check, errors, show, sweep
+from pkmtol.cli import allocate, calibrate, check, errors, show, sweep
 from pkmtol.cli.common import EXIT_ERROR
 from pkmtol.exceptions import PkmtolError
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
-SUBCOMMANDS = (check, errors, allocate, show, sweep)
+SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -6,12 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, executor_from
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import check_output_folder, summary_text, write_outputs
-from pkmtol.units import parse_length
+from pkmtol.units import parse_angle, parse_length
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -68,6 +69,27 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default="every",
         help="with --method exact: reach Φ(β) at the worst pose, at every grid pose (default) or on average",
     )
+    p.add_argument(
+        "--compensation",
+        choices=["ideal", "calibrated", "none"],
+        default="ideal",
+        help="ideal: the paper's Eq. 25 (default); calibrated: the machine after a least-squares "
+        "calibration (plan from [calibration] or the options below); none: the traditional method",
+    )
+    p.add_argument(
+        "--orientation-target",
+        default=None,
+        help="largest tilt Δα* of the tool axis, e.g. 0.1mrad (default: [design] orientation_target; none)",
+    )
+    p.add_argument(
+        "--tool-axis",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="tool axis in the platform frame (default: [design] tool_axis, else 0 0 1)",
+    )
+    add_plan_options(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument(
@@ -109,6 +131,12 @@ def _run(args: argparse.Namespace) -> int:
         criterion=args.criterion,
         progress=not args.no_progress and sys.stderr.isatty(),
         executor=executor_from(args),
+        compensation=args.compensation,
+        calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
+        orientation_target_rad=None
+        if args.orientation_target is None
+        else parse_angle(args.orientation_target, "--orientation-target"),
+        tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
     )
     out = args.out if args.out is not None else Path("out") / mech.name
     check_output_folder(out)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
-from pkmtol.error_model.table import error_table
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import overconstraint_lines, text_table
@@ -29,20 +30,35 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="parameter set (default: dh when every limb has a D–H table, else urdf)",
     )
+    p.add_argument(
+        "--compensation",
+        choices=["ideal", "calibrated", "none"],
+        default="ideal",
+        help="ideal: the paper's classes (default); calibrated: identified / toleranced / absorbed after "
+        "the calibration plan of [calibration] or the options below; none: no compensation",
+    )
+    add_plan_options(p)
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    table = error_table(load_mechanism(args.robot), args.pset)
+    mech = load_mechanism(args.robot)
+    settings = plan_settings(mech, args) if args.compensation == "calibrated" else None
+    table = mode_error_table(mech, args.pset, args.compensation, settings)
     text = table.to_json()  # rendered before anything is printed or written
     wp = table.worst_point_m * 1e3
-    counts = {c: table.classes.count(c) for c in CLASSES}
+    names = CLASSES if args.compensation == "ideal" else tuple(dict.fromkeys(table.classes))
+    counts = {c: table.classes.count(c) for c in names}
+    mode = "" if args.compensation == "ideal" else f" ({args.compensation} compensation)"
     print(
-        f"parameter set '{table.pset.kind}': {len(table.pset)} parameters — "
-        + ", ".join(f"{counts[c]} {c}" for c in CLASSES)
+        f"parameter set '{table.pset.kind}'{mode}: {len(table.pset)} parameters — "
+        + ", ".join(f"{counts[c]} {c}" for c in names)
     )
-    print(f"worst pose (largest σ[Δλ] with η_c ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm")
+    what = "η_c" if args.compensation == "ideal" else "the toleranced errors"
+    print(
+        f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm"
+    )
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition

@@ -126,20 +126,27 @@ class CostDesign:
     iterations: int
 
 
-def _rel_and_grad(J: np.ndarray, sigma: np.ndarray, target_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact R (m,) at poses ``J`` (m, 3, k) and ``∂R/∂(log σ)`` (m, k)."""
+def _cov(J: np.ndarray, sigma: np.ndarray, extra: np.ndarray | None) -> np.ndarray:
+    """``J diag(σ²) Jᵀ`` (m, 3, 3), plus the fixed covariance ``extra`` (m, 3, 3) if any."""
     a = J * sigma[None, None, :]
-    r, g = exact_reliability_many(a @ np.swapaxes(a, 1, 2), target_m, gradient=True)
+    cov = a @ np.swapaxes(a, 1, 2)
+    return cov if extra is None else cov + extra
+
+
+def _rel_and_grad(
+    J: np.ndarray, sigma: np.ndarray, target_m: float, extra: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact R (m,) at poses ``J`` (m, 3, k) and ``∂R/∂(log σ)`` (m, k) (``extra``: fixed covariance)."""
+    r, g = exact_reliability_many(_cov(J, sigma, extra), target_m, gradient=True)
     assert g is not None
     # ∂R/∂x_i (x = log σ) = σ_i ∂R/∂σ_i = 2 σ_i² J_iᵀ G J_i
     d = 2.0 * sigma**2 * np.einsum("mji,mjk,mki->mi", J, g, J)
     return r, d
 
 
-def _rel(J: np.ndarray, sigma: np.ndarray, target_m: float) -> np.ndarray:
-    """Exact R (m,) at poses ``J`` (m, 3, k) for tolerances ``σ`` (k,)."""
-    a = J * sigma[None, None, :]
-    return exact_reliability_many(a @ np.swapaxes(a, 1, 2), target_m)[0]
+def _rel(J: np.ndarray, sigma: np.ndarray, target_m: float, extra: np.ndarray | None = None) -> np.ndarray:
+    """Exact R (m,) at poses ``J`` (m, 3, k) for tolerances ``σ`` (k,) (``extra``: fixed covariance)."""
+    return exact_reliability_many(_cov(J, sigma, extra), target_m)[0]
 
 
 def cost_optimal(
@@ -150,6 +157,7 @@ def cost_optimal(
     start: np.ndarray,
     names: Sequence[str],
     max_rounds: int = 10,
+    extra_cov: np.ndarray | None = None,
 ) -> CostDesign:
     """Minimise total cost subject to exact R ≥ R* at every grid pose.
 
@@ -162,6 +170,7 @@ def cost_optimal(
             meet R* at every pose.
         names: Parameter names (for error messages).
         max_rounds: Cutting-plane rounds at most.
+        extra_cov: Fixed covariance (m, 3, 3) added at each pose [m²] (calibration noise).
 
     Raises:
         InvalidRequestError: no tolerances within the process limits reach R* at every pose;
@@ -170,7 +179,7 @@ def cost_optimal(
     from scipy import optimize  # SLSQP and a root finder: only the cost design needs them
 
     m, _, k = J.shape
-    r_tight = _rel(J, model.t_min_si, target_m)
+    r_tight = _rel(J, model.t_min_si, target_m, extra_cov)
     if r_tight.min() < r_star:
         j = int(np.argmin(r_tight))
         contrib = np.linalg.norm(J[j], axis=0) * model.t_min_si
@@ -191,7 +200,7 @@ def cost_optimal(
         return float(np.sum(model.A + terms)) / c0, -model.k * terms / c0
 
     def r_all(x: np.ndarray) -> np.ndarray:
-        return _rel(J, np.exp(x), target_m)
+        return _rel(J, np.exp(x), target_m, extra_cov)
 
     active = [int(np.argmin(r_all(x0)))]
     x = x0
@@ -199,10 +208,11 @@ def cost_optimal(
     while rounds < max_rounds:
         rounds += 1
         Ja = J[list(active)]
+        Ea = None if extra_cov is None else extra_cov[list(active)]
         cons = {
             "type": "ineq",
-            "fun": lambda x, Ja=Ja: _rel(Ja, np.exp(x), target_m) - r_star,
-            "jac": lambda x, Ja=Ja: _rel_and_grad(Ja, np.exp(x), target_m)[1],
+            "fun": lambda x, Ja=Ja, Ea=Ea: _rel(Ja, np.exp(x), target_m, Ea) - r_star,
+            "jac": lambda x, Ja=Ja, Ea=Ea: _rel_and_grad(Ja, np.exp(x), target_m, Ea)[1],
         }
         res = optimize.minimize(
             objective,

@@ -27,10 +27,18 @@ from pkmtol.executor import Executor, map_chunks
 CRITERIA = ("worst", "every", "average")
 
 
-def grid_reliability(J: np.ndarray, sigma: np.ndarray, target_m: float) -> np.ndarray:
-    """Exact Gaussian reliability at each pose: ``J`` (m, 3, k), ``σ`` (k,) → (m,)."""
+def grid_reliability(
+    J: np.ndarray, sigma: np.ndarray, target_m: float, extra_cov: np.ndarray | None = None
+) -> np.ndarray:
+    """Exact Gaussian reliability at each pose: ``J`` (m, 3, k), ``σ`` (k,) → (m,).
+
+    ``extra_cov`` (m, 3, 3) [m²] is a fixed covariance added at each pose (the tracker noise left by
+    a calibration, ``σ_m² N Nᵀ``).
+    """
     a = J * np.asarray(sigma)[None, None, :]
     cov = a @ np.swapaxes(a, 1, 2)
+    if extra_cov is not None:
+        cov = cov + extra_cov
     return exact_reliability_many(cov, target_m)[0]
 
 
@@ -71,6 +79,7 @@ def scale_design(
     r_star: float,
     criterion: str,
     worst_index: int,
+    extra_cov: np.ndarray | None = None,
 ) -> ScaledDesign:
     """Scale ``shape`` (k,) so that the criterion's exact reliability equals ``r_star``.
 
@@ -81,6 +90,11 @@ def scale_design(
         r_star: Target reliability in (0, 1).
         criterion: ``worst`` / ``every`` / ``average``.
         worst_index: Grid index of the design point (for ``worst``).
+        extra_cov: Fixed covariance (m, 3, 3) added at each pose [m²] (calibration noise).
+
+    Raises:
+        InvalidRequestError: the target cannot be reached at any scale (e.g. the noise alone
+            exceeds it), or is reached at every scale.
     """
     if not 0.0 < r_star < 1.0:
         raise InvalidRequestError(f"target reliability must be in (0, 1), got {r_star}")
@@ -88,17 +102,26 @@ def scale_design(
     finite = np.isfinite(shape)
     base = np.where(finite, shape, 0.0)  # a free parameter has no effect on Δλ at these poses
     Jsel = J if criterion != "worst" else J[worst_index : worst_index + 1]
+    Esel = (
+        None
+        if extra_cov is None
+        else (extra_cov if criterion != "worst" else extra_cov[worst_index : worst_index + 1])
+    )
     w_idx = worst_index if criterion != "worst" else 0
 
     def excess(log_s: float) -> float:
-        r = grid_reliability(Jsel, base * math.exp(log_s), target_m)
+        r = grid_reliability(Jsel, base * math.exp(log_s), target_m, Esel)
         return criterion_value(r, criterion, w_idx) - r_star
 
     lo, hi = -1.0, 1.0
     while excess(lo) < 0:
         lo -= 2.0
         if lo < -60:
-            raise InvalidRequestError("no scale reaches the target reliability (Δλ does not shrink with σ?)")
+            raise InvalidRequestError(
+                "no scale of the tolerances reaches the target reliability: what no tolerance changes "
+                "(the calibration's measurement noise) already exceeds it; measure more poses, use a "
+                "more precise tracker, or relax Δλ* or β"
+            )
     while excess(hi) > 0:
         hi += 2.0
         if hi > 60:
@@ -111,7 +134,7 @@ def scale_design(
     return ScaledDesign(
         sigma=sigma,
         scale=s,
-        reliability=grid_reliability(J, base * s, target_m),
+        reliability=grid_reliability(J, base * s, target_m, extra_cov),
         criterion=criterion,
         target_reliability=r_star,
     )
@@ -144,6 +167,15 @@ class ClaimRow:
     uniform_sqrt3_task_space: tuple[float, float, float]
 
 
+def _noise_draws(cov: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Gaussian vectors (samples, 3) of covariance ``cov`` (3, 3), or of ``cov[s % m]`` for (m, 3, 3)."""
+    covs = cov[None] if cov.ndim == 2 else cov
+    lam, vec = np.linalg.eigh(covs)
+    root = vec * np.sqrt(np.clip(lam, 0.0, None))[:, None, :]
+    idx = np.arange(samples) % covs.shape[0]
+    return np.einsum("sij,sj->si", root[idx], rng.standard_normal((samples, 3)))
+
+
 def claimed_vs_true(
     J_worst: np.ndarray,
     J_task: np.ndarray,
@@ -152,6 +184,8 @@ def claimed_vs_true(
     target_m: float,
     samples: int,
     rng: np.random.Generator,
+    extra_cov_worst: np.ndarray | None = None,
+    extra_cov_task: np.ndarray | None = None,
     executor: Executor | None = None,
 ) -> list[ClaimRow]:
     """Claimed ``Φ(β)`` vs exact and Monte Carlo reliabilities of the FOSM designs.
@@ -159,29 +193,42 @@ def claimed_vs_true(
     Args:
         J_worst: Map at the worst pose (3, k).
         J_task: Maps at task-space poses (m, 3, k) (random points, uniform in the volume).
-        tolerances: FOSM tolerances (k, len(betas)).
+        tolerances: FOSM tolerances (k, len(betas)); a column of NaN (a β the noise floor makes
+            unreachable) is skipped.
         betas: β series.
         target_m: Δλ* [m].
         samples: Monte Carlo samples per cell.
         rng: Random generator.
+        extra_cov_worst: Fixed covariance (3, 3) at the worst pose [m²] (calibration noise).
+        extra_cov_task: Fixed covariance (m, 3, 3) at the task-space poses [m²].
         executor: Where the exact reliabilities run, one chunk per β (None: serial).
     """
-    sigmas = [np.where(np.isfinite(sigma), sigma, 0.0) for sigma in tolerances.T]
-    exact = map_chunks(_exact_cells, [(J_worst, J_task, s, target_m) for s in sigmas], executor)
-    rows = []
     m = J_task.shape[0]
-    for b, s, (r_worst, r_task) in zip(betas, sigmas, exact, strict=True):
+    ew = None if extra_cov_worst is None else extra_cov_worst[None]
+    noisy = extra_cov_worst is not None or extra_cov_task is not None
+    # with noise draws after each cell's errors, a cell is one chunk (the stream of one draw)
+    chunk = samples if noisy else LINEAR_CHUNK
+    kept = [(b, np.where(np.isfinite(sg), sg, 0.0)) for b, sg in zip(betas, tolerances.T, strict=True)]
+    kept = [(b, s) for b, s in kept if not np.any(np.isnan(s))]
+    tasks = [(J_worst, J_task, s, target_m, ew, extra_cov_task) for _, s in kept]
+    exact = map_chunks(_exact_cells, tasks, executor)
+    rows = []
+    for (b, s), (r_worst, r_task) in zip(kept, exact, strict=True):
         cells = []
         for dist in ("uniform_sigma", "uniform_sqrt3_sigma"):
             fail_w = fail_t = 0
-            for start in range(0, samples, LINEAR_CHUNK):
-                count = min(LINEAR_CHUNK, samples - start)
+            for start in range(0, samples, chunk):
+                count = min(chunk, samples - start)
                 eta = sample_errors(dist, s, count, rng)
-                dl_w = np.linalg.norm(eta @ J_worst.T, axis=1)
+                e_w = eta @ J_worst.T
                 idx = np.arange(start, start + count) % m
-                dl_t = np.linalg.norm(np.einsum("sij,sj->si", J_task[idx], eta), axis=1)
-                fail_w += int(np.sum(dl_w > target_m))
-                fail_t += int(np.sum(dl_t > target_m))
+                e_t = np.einsum("sij,sj->si", J_task[idx], eta)
+                if extra_cov_worst is not None:
+                    e_w = e_w + _noise_draws(extra_cov_worst, count, rng)
+                if extra_cov_task is not None:
+                    e_t = e_t + _noise_draws(extra_cov_task, count, rng)
+                fail_w += int(np.sum(np.linalg.norm(e_w, axis=1) > target_m))
+                fail_t += int(np.sum(np.linalg.norm(e_t, axis=1) > target_m))
             for fails in (fail_w, fail_t):
                 f = failure_counts(fails, samples)
                 cells.append((f.reliability, 1.0 - f.failure_ci95[1], 1.0 - f.failure_ci95[0]))
@@ -201,7 +248,9 @@ def claimed_vs_true(
     return rows
 
 
-def _exact_cells(task: tuple[np.ndarray, np.ndarray, np.ndarray, float]) -> tuple[float, np.ndarray]:
+def _exact_cells(task: tuple) -> tuple[float, np.ndarray]:
     """Exact reliability at the worst pose and at each task-space pose of one design (a chunk)."""
-    J_worst, J_task, s, target_m = task
-    return float(grid_reliability(J_worst[None], s, target_m)[0]), grid_reliability(J_task, s, target_m)
+    J_worst, J_task, s, target_m, ew, et = task
+    return float(grid_reliability(J_worst[None], s, target_m, ew)[0]), grid_reliability(
+        J_task, s, target_m, et
+    )

@@ -17,13 +17,21 @@ import numpy as np
 from pkmtol.exceptions import InvalidRequestError
 
 
-def fosm_tolerances(omega: np.ndarray, target_m: float, betas: np.ndarray) -> np.ndarray:
-    """Equal-effect FOSM tolerances ``σ_i(β) = Δλ*/(√n ω_i β)``.
+def fosm_tolerances(
+    omega: np.ndarray, target_m: float, betas: np.ndarray, noise_variance: float = 0.0
+) -> np.ndarray:
+    """Equal-effect FOSM tolerances ``σ_i(β) = √((Δλ*/β)² − v) / (√n ω_i)``.
+
+    ``v`` is a fixed variance of Δλ's linear response that no tolerance changes (the tracker noise
+    left after a calibration, ``σ_m² ‖N‖²_F`` at the design pose); with ``v = 0`` this is the
+    paper's ``Δλ*/(√n ω_i β)`` (Eq. 20). Where ``(Δλ*/β)² ≤ v`` no tolerance reaches the target:
+    that column is NaN.
 
     Args:
         omega: Sensitivities (n,).
         target_m: Δλ* [m].
         betas: Reliability indices (k,).
+        noise_variance: ``v`` [m²].
 
     Returns:
         Shape (n, k): tolerances in each parameter's SI unit; ``inf`` where ``ω_i = 0``.
@@ -34,14 +42,24 @@ def fosm_tolerances(omega: np.ndarray, target_m: float, betas: np.ndarray) -> np
            [        inf,         inf]])
     """
     check_design(target_m, betas)
+    if not np.isfinite(noise_variance) or noise_variance < 0:
+        raise InvalidRequestError(f"the noise variance must be finite and ≥ 0, got {noise_variance!r}")
     omega = np.asarray(omega, dtype=float)
     scale = 1e-12 * max(float(omega.max(initial=0.0)), 1e-300)
     active = omega > scale
     n = int(active.sum())
-    out = np.full((omega.size, np.size(betas)), np.inf)
+    b = np.asarray(betas, dtype=float)
+    budget2 = (target_m / b) ** 2 - noise_variance
+    budget = np.where(budget2 > 0, np.sqrt(np.clip(budget2, 0.0, None)), np.nan)
+    out = np.full((omega.size, b.size), np.inf)
     if n:
-        out[active] = target_m / (np.sqrt(n) * omega[active, None] * np.asarray(betas)[None, :])
+        out[active] = budget[None, :] / (np.sqrt(n) * omega[active, None])
     return out
+
+
+def noise_floor_m(beta: float, noise_variance: float) -> float:
+    """The smallest Δλ* FOSM can meet at ``β`` when the noise alone has variance ``v``: ``β √v`` [m]."""
+    return float(beta * np.sqrt(max(noise_variance, 0.0)))
 
 
 def check_design(target_m: float, betas: np.ndarray | list[float] | tuple[float, ...]) -> None:

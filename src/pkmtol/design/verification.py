@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special
 from tqdm import tqdm
 
 from pkmtol.error_model.parameters import ParameterSet
@@ -36,14 +35,13 @@ from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.perturbation import perturbed_limb_models
 from pkmtol.model.mechanism import Mechanism
+from pkmtol.statistics import wilson_interval
 
 DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
 #: Linear-model samples drawn and evaluated at a time.
 LINEAR_CHUNK = 65_536
 #: Exact-kinematics samples per chunk of work (one batched forward solve).
 EXACT_CHUNK = 200
-#: The two-sided 95 % standard normal quantile.
-Z95 = float(special.ndtri(0.975))
 
 
 def sample_errors(distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -92,17 +90,12 @@ def failure_stats(dlam: np.ndarray, target_m: float) -> FailureStats:
 
 def failure_counts(failures: int, n: int, mean_m: float = math.nan, std_m: float = math.nan) -> FailureStats:
     """:class:`FailureStats` from a failure count ``failures`` out of ``n`` samples (Wilson interval)."""
-    k = failures
-    p = k / n
-    z = Z95
-    den = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    p = failures / n
     return FailureStats(
         mean_m=mean_m,
         std_m=std_m,
         failure_fraction=p,
-        failure_ci95=(0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half)),
+        failure_ci95=wilson_interval(failures, n),
         reliability=1.0 - p,
         samples=n,
     )
@@ -125,6 +118,12 @@ class Verification:
             closed (an over-constrained mechanism with errors no rigid motion satisfies: assembly
             errors); they are left out of ``exact``, ``linear_subsample`` and the difference.
         dlam_exact_m: Exact Δλ of the subsample [m] (nan where unassembled; empty if not run).
+        tilt_linear_rad: Linear tilt Δα of the tool axis of every sample [rad] (None unless the
+            orientation is verified).
+        tilt: Statistics of the linear Δα against Δα* (values in rad; None without a target).
+        tilt_exact: The same on the exact subsample.
+        joint: Linear statistics of ``max(Δλ/Δλ*, Δα/Δα*)`` against 1: its failure fraction is
+            ``P(Δλ > Δλ* or Δα > Δα*)`` (None without an orientation target).
     """
 
     distribution: str
@@ -136,6 +135,10 @@ class Verification:
     pose_points_m: np.ndarray
     exact_unassembled: int = 0
     dlam_exact_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tilt_linear_rad: np.ndarray | None = None
+    tilt: FailureStats | None = None
+    tilt_exact: FailureStats | None = None
+    joint: FailureStats | None = None
 
     @property
     def points_m(self) -> np.ndarray:

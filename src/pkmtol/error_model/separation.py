@@ -69,6 +69,9 @@ class Separation:
         redundancy: ``f + c − 6``: number of linearly dependent wrenches (over-constraint).
         incompatible_map: Shape (f + c, n): ``Y − Wᵀ twist_map``; non-zero columns are errors that
             an over-constrained mechanism cannot assemble with rigid links (assembly errors).
+        actuation_map: Shape (6, f): platform twist per unit actuator motion [m or rad per m or
+            rad], ``W⁻ᵀ [diag(Λ_a); 0]`` (from Eq. 7 with η = 0); a change ``Δu`` of the actuator
+            commands moves the platform by ``actuation_map · Δu``.
     """
 
     pose: Pose
@@ -90,6 +93,7 @@ class Separation:
     J_total: np.ndarray
     redundancy: int = 0
     incompatible_map: np.ndarray | None = None
+    actuation_map: np.ndarray | None = None
 
 
 def null_space(a: np.ndarray) -> np.ndarray:
@@ -207,6 +211,7 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         J_total=to_p @ twist_map,
         redundancy=W.shape[1] - 6,
         incompatible_map=incompatible,
+        actuation_map=W_inv_T[:, :f] * lam_arr[None, :],
     )
 
 
@@ -353,6 +358,7 @@ def _stacked(
     lam_arr = np.stack(lam, axis=1) if f else np.zeros((b, 0))
     correction = -(y_a / lam_arr[:, :, None]) if f else np.zeros((b, 0, n))
     J, J_total = to_p @ unc, to_p @ twist_map
+    actuation = w_inv_t[:, :, :f] * lam_arr[:, None, :]  # W⁻ᵀ [diag(Λ_a); 0]
     out: list[dict | KinematicsError | None] = []
     for pos in range(b):
         if fallback[pos]:
@@ -382,6 +388,7 @@ def _stacked(
                     "J_total": J_total[pos],
                     "redundancy": f + c - 6,
                     "incompatible_map": incompatible[pos],
+                    "actuation_map": actuation[pos],
                 }
             )
     return out

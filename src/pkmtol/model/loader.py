@@ -10,14 +10,14 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.exceptions import MechanismFormatError
+from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
 from pkmtol.model.closed_loop import limbs_from_toml
 from pkmtol.model.dh import DHTable
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader, load_urdf
 from pkmtol.model.taskspace import TaskSpace
-from pkmtol.units import parse_length
+from pkmtol.units import parse_angle, parse_length
 
 
 def load_mechanism(
@@ -79,6 +79,18 @@ def _from_doc(
         r.fail("design.target", str(err))
     betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
+    design_extra: dict[str, object] = {}
+    alpha = r.get("design.orientation_target", str, default=None)
+    if alpha is not None:
+        try:
+            design_extra["orientation_target_rad"] = parse_angle(alpha, "design.orientation_target")
+        except InvalidRequestError as err:
+            r.fail("design.orientation_target", str(err))
+    if "tool_axis" in dict(doc.get("design") or {}):
+        axis = r.vector("design.tool_axis", 3)
+        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-12:
+            r.fail("design.tool_axis", f"expected a non-zero [x, y, z] (platform frame), got {axis.tolist()}")
+        design_extra["tool_axis"] = tuple(float(x) for x in axis)
     limbs = []
     if "closed_loop" in doc:
         # one URDF tree with closure frame pairs (docs/closed-loop.md)
@@ -105,7 +117,11 @@ def _from_doc(
         design_beta,
         root=folder,
         description=r.get("description", str, default=""),
-        extra={"cost": r.get("cost", dict, default={})},
+        extra={
+            "cost": r.get("cost", dict, default={}),
+            "calibration": r.get("calibration", dict, default={}),
+            "design": design_extra,
+        },
         check_home_closure=check_home_closure,
     )
 

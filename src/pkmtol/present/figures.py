@@ -16,7 +16,6 @@ left alone, so this works headless and inside notebooks alike.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,8 +24,9 @@ from typing import Any
 import numpy as np
 
 from pkmtol.design.job import DesignResult
-from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
+from pkmtol.exceptions import InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
+from pkmtol.present.plotting import new_figure, render
 
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
@@ -49,27 +49,6 @@ _GREEK = {
     "ψ": r"\psi ",
     "λ": r"\lambda ",
 }
-
-
-def _mpl() -> tuple[Any, Any]:
-    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do."""
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError as err:
-        raise FiguresError(
-            f"the figures need matplotlib ({err}); install it with "
-            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`)"
-        ) from err
-    return Figure, FigureCanvasAgg
-
-
-def new_figure(size: tuple[float, float]) -> Any:
-    """An empty figure of ``size`` inches on its own Agg canvas (FiguresError without matplotlib)."""
-    figure_cls, canvas_cls = _mpl()
-    fig = figure_cls(figsize=size, layout="constrained")
-    canvas_cls(fig)
-    return fig
 
 
 def tex_name(name: str) -> str:
@@ -245,18 +224,6 @@ def tolerance_figure(result: DesignResult) -> Any:
     ax.legend(fontsize=8)
     ax.grid(axis="y", which="both", alpha=0.3)
     return fig
-
-
-def render(fig: Any, fmt: str, dpi: int) -> bytes:
-    """``fig`` as the bytes of a ``fmt`` file (png, svg, pdf) without a date or software stamp."""
-    buf = io.BytesIO()
-    fig.savefig(
-        buf,
-        format=fmt,
-        dpi=dpi,
-        metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
-    )
-    return buf.getvalue()
 
 
 def make_figures(result: DesignResult) -> dict[str, Any]:

@@ -156,7 +156,7 @@ def to_csv(s: Synthesis) -> str:
 
 def sweep_figure(s: Synthesis) -> Any:
     """σ[Δλ] (unit errors) and the cost against the first varied key, one line per other combination."""
-    from pkmtol.present.figures import new_figure
+    from pkmtol.present.plotting import new_figure
 
     fig = new_figure((7.0, 4.0))
     ax = fig.add_subplot()
@@ -204,7 +204,7 @@ def write_sweep(s: Synthesis, out_dir: Path | str, figures: bool = True) -> list
         raise OutputError(out, err.strerror or str(err)) from err
     files = {"sweep.csv": to_csv(s).encode(), "sweep.json": to_json(s).encode()}
     if figures:
-        from pkmtol.present.figures import render
+        from pkmtol.present.plotting import render
 
         fig = sweep_figure(s)
         files.update({f"sweep.{fmt}": render(fig, fmt, 150) for fmt in ("png", "svg")})

@@ -29,6 +29,8 @@ def _num(x: float) -> float | None:
 
 
 def _fmt_tol(x: float, unit: str) -> str:
+    if math.isnan(x):
+        return "noise floor"
     return "+inf" if not math.isfinite(x) else f"±{display(x, unit):.4f}"
 
 
@@ -60,7 +62,13 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
                 "sensitivity": float(r.sensitivity[i]),
                 "sensitivity_unit": f"m/{p.unit}",
                 "sensitivity_uncompensated": float(r.sensitivity_uncompensated[i]),
-                "tolerance": None if np.isnan(tol[0]) else [_num(t) for t in tol],
+                "tolerance": None if np.all(np.isnan(tol)) else [_num(t) for t in tol],
+                "class_in_mode": r.mode_classes[i] if r.mode_classes else r.classes[i],
+                "tolerance_from_grid_pose": (
+                    int(r.fallback_pose[i])
+                    if r.fallback_pose is not None and r.fallback_pose[i] >= 0
+                    else None
+                ),
                 "traditional_tolerance": _num(trad[i]) if i in trad else None,
                 "assembly_error": bool(assembly[i]),
             }
@@ -120,10 +128,51 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
             "equal_effect_same_true_r_tolerance": r.method_design.reference_sigma.tolist(),
             "equal_effect_same_true_r_cost": r.method_design.reference_cost,
         },
+        "compensation": r.compensation,
+        "noise_variance_m2": r.noise_variance_m2,
+        "calibration_plan": None
+        if r.calibration_plan is None
+        else {
+            "controller": r.calibration_plan.settings.controller_label,
+            "poses": r.calibration_plan.poses,
+            "selection": r.calibration_plan.settings.selection,
+            "noise_m": r.calibration_plan.settings.noise_m,
+            "targets_m": r.calibration_plan.targets_m.tolist(),
+            "prior": r.calibration_plan.settings.prior,
+            "rank": r.calibration_plan.ident.rank,
+            "condition": r.calibration_plan.ident.condition,
+            "observability_O1": r.calibration_plan.ident.observability,
+            "points_m": r.calibration_plan.maps.points_m.tolist(),
+        },
+        "orientation": None if r.orientation is None else _orientation_json(r),
         "traditional": {
             "design_point_m": r.worst_point_m.tolist(),
             "own_worst_point_m": r.grid.points_m[r.traditional.worst_index].tolist(),
             "n_allocated": int(np.sum(np.isfinite(r.traditional.tolerance))),
+        },
+    }
+
+
+def _orientation_json(r: DesignResult) -> dict[str, Any]:
+    o = r.orientation
+    assert o is not None
+    return {
+        "tool_axis": o.axis.tolist(),
+        "target_rad": o.target_rad,
+        "tilt_worst_index": o.worst_index,
+        "tilt_sensitivity_rad_per_unit": o.sensitivity.tolist(),
+        "tilt_tolerance": None if o.tolerances is None else [[_num(t) for t in row] for row in o.tolerances],
+        "tilt_binding": None if o.binding is None else o.binding.tolist(),
+        "tilt_mean_at_design_point_rad": o.tilt_mean_rad,
+        "tilt_std_at_design_point_rad": o.tilt_std_rad,
+        "tilt_mean_grid_rad": o.tilt_grid_mean_rad.tolist(),
+        "verification": {
+            name: {
+                "tilt": None if v.tilt is None else _stats(v.tilt),
+                "tilt_exact": None if v.tilt_exact is None else _stats(v.tilt_exact),
+                "joint_failure": None if v.joint is None else _stats(v.joint),
+            }
+            for name, v in r.verification.items()
         },
     }
 
@@ -148,13 +197,94 @@ def table_rows(r: DesignResult) -> list[list[str]]:
     """Rows of the tolerance table (the paper's Table III) with a header row."""
     header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas]
     rows = [header]
+    fallback = r.fallback_pose if r.fallback_pose is not None else np.full(len(r.pset), -1)
     for k, i in enumerate(r.uncompensatable, start=1):
         p = r.pset.parameters[i]
+        name = p.name + (f" *{fallback[i]}" if fallback[i] >= 0 else "")
         rows.append(
-            [str(k), p.name, display_unit(p.unit), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
+            [str(k), name, display_unit(p.unit), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
             + [_fmt_tol(t, p.unit) for t in r.tolerances[i]]
         )
     return rows
+
+
+_MODE_TITLE = {
+    "ideal": "Tolerances of the uncompensatable errors (FOSM, paper Table III)",
+    "calibrated": "Tolerances after calibration (FOSM on the post-calibration map L)",
+    "none": "Tolerances without compensation (FOSM on J_total, the traditional method)",
+}
+
+
+def compensation_lines(r: DesignResult) -> list[str]:
+    """What the compensation mode is, its classes, the plan and noise (calibrated), fallbacks."""
+    counts = {c: r.mode_classes.count(c) for c in dict.fromkeys(r.mode_classes)}
+    out = [
+        f"compensation: {r.compensation} — "
+        + {
+            "ideal": "the paper's Eq. 25 (the controller knows the compensatable errors exactly)",
+            "calibrated": "a least-squares calibration from tracker measurements",
+            "none": "no compensation (the traditional method)",
+        }[r.compensation]
+        + "; classes: "
+        + ", ".join(f"{n} {c}" for c, n in counts.items())
+    ]
+    plan = r.calibration_plan
+    if plan is not None:
+        st = plan.settings
+        out.append(
+            f"calibration plan: controller '{st.controller_label}' ({plan.ident.columns.size} parameters, "
+            f"rank {plan.ident.rank}), {plan.poses} {st.selection} poses, {plan.targets_m.shape[0]} "
+            f"target(s), tracker noise {1e3 * st.noise_m:.4g} mm per coordinate"
+            + (", MAP prior" if st.prior else "")
+            + f"; condition number {plan.ident.condition:.4g}, O1 {plan.ident.observability:.4g}"
+        )
+        out.append(
+            f"the tracker noise alone leaves σ = {1e6 * math.sqrt(r.noise_variance_m2):.3f} µm of Δλ's "
+            "linear response at the design point (a fixed variance term in FOSM; the floor it sets is "
+            f"β·σ = {1e6 * r.design_beta * math.sqrt(r.noise_variance_m2):.3f} µm at the design β)"
+        )
+    fb = r.fallback_pose if r.fallback_pose is not None else np.zeros(0)
+    n_fb = int(np.sum(fb >= 0))
+    if n_fb:
+        out.append(
+            f"* {n_fb} allocated parameter(s) have no effect at the design point; each is toleranced "
+            "from its own most sensitive grid pose (the number after '*'), never left free"
+        )
+    return out
+
+
+def orientation_lines(r: DesignResult) -> list[str]:
+    """The tilt Δα of the tool axis: at the design point, and against its target when set."""
+    o = r.orientation
+    if o is None:
+        return []
+    ax = ", ".join(f"{x:.4g}" for x in o.axis)
+    out = [
+        f"tool axis ({ax}) in the platform frame; tilt Δα of the verified design at the design point: "
+        f"mean {1e6 * o.tilt_mean_rad:.2f} µrad, σ {1e6 * o.tilt_std_rad:.2f} µrad; largest grid-pose mean "
+        f"{1e6 * float(o.tilt_grid_mean_rad.max()):.2f} µrad"
+    ]
+    if o.target_rad is not None and o.binding is not None:
+        out.append(
+            f"orientation target Δα* = {1e6 * o.target_rad:.4g} µrad: the tilt's own FOSM tolerance is the "
+            f"smaller for {int(o.binding.sum())} of {len(r.uncompensatable)} parameters (tilt-worst grid "
+            f"pose {o.worst_index})"
+        )
+    for name, v in r.verification.items():
+        if v.joint is not None:
+            f = v.joint
+            out.append(
+                f"{name}: P(Δλ > Δλ* or Δα > Δα*) = {100 * f.failure_fraction:.2f} % "
+                f"[{100 * f.failure_ci95[0]:.2f}, {100 * f.failure_ci95[1]:.2f}] "
+                f"(linear, {f.samples} samples)"
+                + (
+                    ""
+                    if v.tilt_exact is None
+                    else f"; exact tilt beyond Δα*: {100 * v.tilt_exact.failure_fraction:.2f} % "
+                    f"of {v.tilt_exact.samples}"
+                )
+            )
+    return out
 
 
 def comparison_rows(r: DesignResult) -> list[list[str]]:
@@ -163,14 +293,15 @@ def comparison_rows(r: DesignResult) -> list[list[str]]:
     rows = [["parameter", "class", "unit", "new", "traditional", "traditional/new"]]
     for i, t in zip(r.traditional.columns, r.traditional.tolerance, strict=True):
         p = r.pset.parameters[i]
-        new = r.tolerances[i, col] if r.classes[i] == "uncompensatable" else float("inf")
+        allocated = i in set(r.uncompensatable.tolist())
+        new = r.tolerances[i, col] if allocated else float("inf")
         ratio = _ratio(t, new) if math.isfinite(new) else float("nan")
         rows.append(
             [
                 p.name,
-                r.classes[i],
+                r.mode_classes[i] if r.mode_classes else r.classes[i],
                 display_unit(p.unit),
-                _fmt_tol(new, p.unit) if r.classes[i] == "uncompensatable" else "compensated",
+                _fmt_tol(new, p.unit) if allocated else "compensated",
                 _fmt_tol(t, p.unit),
                 "-" if math.isnan(ratio) else f"{ratio:.3f}",
             ]
@@ -246,7 +377,8 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         f"{r.search.sigma_sampled_m[r.worst_index]:.5g} m from {r.search.samples} samples "
         f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
         _search_agreement(r),
-        h("Tolerances of the uncompensatable errors (FOSM, paper Table III)"),
+        *compensation_lines(r),
+        h(_MODE_TITLE.get(r.compensation, _MODE_TITLE["ideal"])),
         "R = Φ(β): "
         + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
         "",
@@ -289,6 +421,8 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         for name, v in r.verification.items()
         if v.exact_unassembled
     ]
+    if r.orientation is not None and (r.orientation.target_rad is not None or r.compensation != "ideal"):
+        out += [h("Orientation of the tool axis"), *orientation_lines(r)]
     out += [
         h("Claimed vs true reliability of the FOSM designs (R in %)"),
         table(claim_rows(r)),
@@ -308,7 +442,7 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
     shared = [
         (t.tolerance[k], r.tolerances[i, col])
         for k, i in enumerate(t.columns)
-        if r.classes[i] == "uncompensatable" and math.isfinite(r.tolerances[i, col])
+        if i in set(r.uncompensatable.tolist()) and math.isfinite(r.tolerances[i, col])
     ]
     tighter = sum(1 for a, b in shared if a < b)
     factor = np.median([b / a for a, b in shared]) if shared else float("nan")

@@ -1,0 +1,105 @@
+"""Compensation by the controller's model, and the error the true machine is left with (exact).
+
+The controller solves the inverse kinematics of its model (the mechanism perturbed by the
+identified parameters) for a target of P, and sends the readings it finds; the true machine (its
+real errors) moves to the pose its exact forward kinematics gives for those readings. What is left
+is measured against the *nominal* pose at that target: the position error of P and the platform's
+rotation (DESIGN.md's pose error ``X_actual = X_nominal · exp6(δ)``, rotation part in K).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.calibration.machine import Machine
+from pkmtol.exceptions import KinematicsError
+
+
+@dataclass(frozen=True, eq=False)
+class PoseErrors:
+    """Errors of a machine at ``m`` targets of P (frame K, SI units).
+
+    Attributes:
+        position_m: Shape (m, 3): P_actual − P_target [m].
+        rotation_rad: Shape (m, 3): rotation vector of the platform relative to its nominal
+            orientation at the target, in K [rad].
+        solved: Shape (m,): False where the model or the machine could not be solved (then the
+            rows above are NaN).
+    """
+
+    position_m: np.ndarray
+    rotation_rad: np.ndarray
+    solved: np.ndarray
+
+    @property
+    def dlambda_m(self) -> np.ndarray:
+        """Accuracy index Δλ = ‖P error‖ per target [m] (NaN where unsolved)."""
+        return np.linalg.norm(self.position_m, axis=1)
+
+    @property
+    def angle_rad(self) -> np.ndarray:
+        """Full orientation error angle per target [rad]."""
+        return np.linalg.norm(self.rotation_rad, axis=1)
+
+    def tilt_rad(self, axis: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+        """Tilt of the tool axis ``axis`` (platform frame) per target [rad]; ``rotations`` (m, 3, 3) nominal.
+
+        The angle between the nominal and the actual axis: ``atan2(‖a × a'‖, a · a')``, exact.
+        """
+        a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        nominal = np.einsum("kij,j->ki", rotations, a)
+        actual = np.empty_like(nominal)
+        for k, (rk, th) in enumerate(zip(rotations, self.rotation_rad, strict=True)):
+            actual[k] = pin.exp3(th) @ rk @ a if np.all(np.isfinite(th)) else np.nan
+        cross = np.linalg.norm(np.cross(nominal, actual), axis=1)
+        return np.arctan2(cross, np.einsum("ki,ki->k", nominal, actual))
+
+
+def pose_errors(
+    machine: Machine,
+    commands: np.ndarray,
+    q0: np.ndarray,
+    targets_m: np.ndarray,
+    rotations: np.ndarray,
+) -> PoseErrors:
+    """Errors of ``machine`` at readings ``commands`` (m, f) against targets (m, 3) with nominal rotations.
+
+    ``q0`` (m, Σ nq) are the initial guesses (e.g. the nominal joint values at the targets).
+    """
+    m = len(commands)
+    pos = np.full((m, 3), np.nan)
+    rot = np.full((m, 3), np.nan)
+    ok = np.zeros(m, dtype=bool)
+    for k in range(m):
+        try:
+            pose = machine.forward(commands[k], q0[k])
+        except KinematicsError:
+            continue
+        pos[k] = pose.p_m - targets_m[k]
+        rk = rotations[k]
+        rot[k] = rk @ pin.log3(rk.T @ pose.oMp.rotation)
+        ok[k] = True
+    return PoseErrors(position_m=pos, rotation_rad=rot, solved=ok)
+
+
+def controller_commands(
+    model: Machine, targets_m: np.ndarray, q0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Readings the controller sends for each target (m, 3): its model's exact inverse kinematics.
+
+    Returns:
+        ``(commands (m, f), solved (m,))``; unsolved rows are NaN.
+    """
+    f = model.actuated_idx.size
+    out = np.full((len(targets_m), f), np.nan)
+    ok = np.zeros(len(targets_m), dtype=bool)
+    for k, (p, q) in enumerate(zip(targets_m, q0, strict=True)):
+        try:
+            out[k], _ = model.inverse(p, q)
+            ok[k] = True
+        except KinematicsError:
+            continue
+    return out, ok

@@ -1,0 +1,112 @@
+"""Linear maps of a calibration at a list of poses: platform twist, actuation, measured target rows.
+
+At pose ``k`` (nominal closed chain, all arrays in K', SI units), the pose error twist of the
+platform with the actuator *commands* held is ``$_k = T_k δ`` (``Separation.twist_map``: every
+parameter, actuator zero offsets included), and a change of the commands moves it by
+``A_k Δu`` (``Separation.actuation_map``). A tracker target fixed at ``t`` in the platform frame
+sits at ``l = R_k t`` from O' in K; its position error is ``[I, −[l]×] $_k``. Stacking the rows of
+every target over the calibration poses gives the identification Jacobian ``H`` (DESIGN.md,
+"Compensation and calibration").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pkmtol.error_model.compensation import skew_batch
+from pkmtol.error_model.sweep import Sweep
+
+
+@dataclass(frozen=True, eq=False)
+class PoseMaps:
+    """The linear error model at ``m`` poses, as arrays (``n`` parameters, ``f`` actuators).
+
+    Attributes:
+        points_m: Shape (m, 3): nominal position of the reference point P in K [m].
+        rotations: Shape (m, 3, 3): nominal platform orientation ``R_k`` (platform → K).
+        q: Shape (m, Σ nq): nominal joint values of every limb [rad or m].
+        commands: Shape (m, f): nominal actuator commands (the actuated entries of ``q``).
+        twist: Shape (m, 6, n): ``T_k``, platform twist per unit parameter at held commands.
+        actuation: Shape (m, 6, f): ``A_k``, platform twist per unit command change.
+        reference_point_m: Shape (3,): P in the platform frame [m].
+    """
+
+    points_m: np.ndarray
+    rotations: np.ndarray
+    q: np.ndarray
+    commands: np.ndarray
+    twist: np.ndarray
+    actuation: np.ndarray
+    reference_point_m: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.points_m.shape[0])
+
+    def subset(self, index: np.ndarray) -> PoseMaps:
+        """The maps at the poses ``index`` (in that order)."""
+        idx = np.asarray(index, dtype=int)
+        return PoseMaps(
+            points_m=self.points_m[idx],
+            rotations=self.rotations[idx],
+            q=self.q[idx],
+            commands=self.commands[idx],
+            twist=self.twist[idx],
+            actuation=self.actuation[idx],
+            reference_point_m=self.reference_point_m,
+        )
+
+    def point_rows(self, targets_m: np.ndarray) -> np.ndarray:
+        """Position-error operators of targets fixed on the platform, shape (m, 3·t, 6).
+
+        Args:
+            targets_m: Shape (t, 3): target positions in the platform frame [m].
+
+        Row block ``j`` of pose ``k`` is ``[I, −[R_k t_j]×]``: it maps the platform twist at O' to
+        the position error of target ``j`` in K.
+        """
+        targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
+        levers = np.einsum("kab,tb->kta", self.rotations, targets)  # (m, t, 3)
+        m, t = levers.shape[:2]
+        rows = np.zeros((m, t, 3, 6))
+        rows[:, :, :, :3] = np.eye(3)
+        rows[:, :, :, 3:] = -skew_batch(levers)
+        return rows.reshape(m, 3 * t, 6)
+
+    def measurement_rows(self, targets_m: np.ndarray) -> np.ndarray:
+        """Target position errors per unit parameter at held commands, shape (m, 3·t, n)."""
+        return np.einsum("kij,kjn->kin", self.point_rows(targets_m), self.twist)
+
+    def position_map(self) -> np.ndarray:
+        """P's position error per unit parameter at held commands (``J_total``), shape (m, 3, n)."""
+        return self.measurement_rows(self.reference_point_m[None, :])
+
+    def position_actuation(self) -> np.ndarray:
+        """P's position change per unit command change, shape (m, 3, f)."""
+        return np.einsum("kij,kjf->kif", self.point_rows(self.reference_point_m[None, :]), self.actuation)
+
+
+def pose_maps(grid: Sweep, actuated_idx: np.ndarray, reference_point_m: np.ndarray) -> PoseMaps:
+    """The maps of every pose of a sweep.
+
+    Args:
+        grid: Separations at the poses (:func:`pkmtol.error_model.sweep.sweep`).
+        actuated_idx: Indices of the actuated joints in the concatenated q
+            (``ClosedChain.actuated_idx``).
+        reference_point_m: P in the platform frame, shape (3,) [m].
+    """
+    seps = grid.separations
+    q = np.array([p.q_all for p in grid.poses])
+    act = [s.actuation_map for s in seps]
+    if any(a is None for a in act):  # pragma: no cover - separate() always sets it
+        raise ValueError("separations without an actuation map")
+    return PoseMaps(
+        points_m=np.array([p.p_m for p in grid.poses]),
+        rotations=np.array([p.oMp.rotation for p in grid.poses]),
+        q=q,
+        commands=q[:, np.asarray(actuated_idx, dtype=int)],
+        twist=np.array([s.twist_map for s in seps]),
+        actuation=np.array(act),
+        reference_point_m=np.asarray(reference_point_m, dtype=float),
+    )

@@ -1,0 +1,219 @@
+"""The calibration plan's settings: targets, tracker noise, pose count and selection, controller model, prior.
+
+They come from the optional ``[calibration]`` table of ``mechanism.toml`` (docs/calibration.md),
+overridable on the command line. Every length and angle in the table carries its unit.
+
+Defaults and why:
+
+* **noise 0.01 mm per axis**: a laser tracker's maximum permissible error is about
+  ±(15 µm + 6 µm/m) (manufacturers' ISO 10360-10 figures for the Leica AT960 / FARO Vantage class);
+  at the 1–2 m range of a machining PKM that is 25–30 µm at 2σ–3σ, i.e. a σ of about 10 µm per
+  coordinate;
+* **40 poses, D-optimal**: enough to reach the noise floor on the bundled robots (docs/calibration.md
+  shows the p99 against the pose count);
+* **targets**: P only (position of P is what the task needs; give three or more non-collinear
+  targets to observe the platform's orientation);
+* **controller ``compensatable``**: the paper's premise — the controller's model holds the errors
+  that the actuators can compensate; ``full`` holds every non-absorbed parameter (a controller
+  running inverse kinematics on calibrated URDFs);
+* **manufacturing σ 0.1 mm and 0.5 mrad**: the size of the compensatable errors before calibration
+  (they also scale the identification's columns and the MAP prior).
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
+from pkmtol.model.mechanism import Mechanism
+from pkmtol.units import parse_angle, parse_length
+
+CONTROLLERS = ("compensatable", "full")
+SELECTIONS = ("d-optimal", "random")
+#: Keys of the ``[calibration]`` table.
+TABLE_KEYS = (
+    "targets_m",
+    "noise",
+    "poses",
+    "selection",
+    "controller",
+    "prior",
+    "rank_tolerance",
+    "candidates",
+    "manufacturing_length",
+    "manufacturing_angle",
+)
+
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """How the machine will be calibrated.
+
+    Attributes:
+        targets_m: Tracker targets in the platform frame, ``((x, y, z), ...)`` [m]; empty: P only.
+        noise_m: Tracker noise σ_m per measured coordinate [m].
+        poses: Number of calibration poses N.
+        selection: ``d-optimal`` or ``random`` (from the candidate pool).
+        controller: ``compensatable``, ``full``, or an explicit tuple of parameter names.
+        prior: Identify every controller parameter with a Gaussian prior (MAP) instead of least
+            squares on the base parameters.
+        rank_tolerance: Relative pivot below which a direction is unidentifiable.
+        candidates: Random reachable poses added to the task-space grid to form the pool.
+        manufacturing_length_m: σ of the compensatable length errors before calibration [m].
+        manufacturing_angle_rad: σ of the compensatable angle errors [rad].
+        seed: Random seed (candidate pool, random plans).
+    """
+
+    targets_m: tuple[tuple[float, float, float], ...] = ()
+    noise_m: float = 1e-5
+    poses: int = 40
+    selection: str = "d-optimal"
+    controller: str | tuple[str, ...] = "compensatable"
+    prior: bool = False
+    rank_tolerance: float = 1e-6
+    candidates: int = 300
+    manufacturing_length_m: float = 1e-4
+    manufacturing_angle_rad: float = 5e-4
+    seed: int = 0
+    extra: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        for name, value in (
+            ("noise_m", self.noise_m),
+            ("manufacturing_length_m", self.manufacturing_length_m),
+            ("manufacturing_angle_rad", self.manufacturing_angle_rad),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+                raise InvalidRequestError(f"calibration {name} must be a finite number, got {value!r}")
+        if self.noise_m < 0 or self.manufacturing_length_m <= 0 or self.manufacturing_angle_rad <= 0:
+            raise InvalidRequestError(
+                "calibration noise must be ≥ 0 and the manufacturing σ > 0; give e.g. noise '0.01 mm'"
+            )
+        for name, value, low in (
+            ("poses", self.poses, 1),
+            ("candidates", self.candidates, 0),
+            ("seed", self.seed, 0),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InvalidRequestError(f"calibration {name} must be an integer ≥ {low}, got {value!r}")
+        if self.selection not in SELECTIONS:
+            raise InvalidRequestError(
+                f"unknown pose selection {self.selection!r}; use one of {', '.join(SELECTIONS)}"
+            )
+        if isinstance(self.controller, str) and self.controller not in CONTROLLERS:
+            raise InvalidRequestError(
+                f"unknown controller model {self.controller!r}; use {', '.join(CONTROLLERS)} or a list "
+                "of parameter names"
+            )
+        if not 0 < self.rank_tolerance < 1:
+            raise InvalidRequestError(f"rank_tolerance must be in (0, 1), got {self.rank_tolerance!r}")
+        pts = (
+            np.asarray(self.targets_m, dtype=float).reshape(-1, 3)
+            if len(self.targets_m)
+            else np.zeros((0, 3))
+        )
+        if not np.all(np.isfinite(pts)):
+            raise InvalidRequestError("calibration targets_m must be finite [x, y, z] in metres")
+
+    def targets(self, mechanism: Mechanism) -> np.ndarray:
+        """The tracker targets (t, 3) in the platform frame [m]: ``targets_m``, or P alone."""
+        if len(self.targets_m):
+            return np.asarray(self.targets_m, dtype=float).reshape(-1, 3)
+        return np.asarray(mechanism.reference_point_m, dtype=float)[None, :]
+
+    def controller_columns(self, pset: ParameterSet, classes: list[str]) -> np.ndarray:
+        """Indices of the controller model's parameters in ``pset``.
+
+        Raises:
+            InvalidRequestError: an explicit name is not a parameter, or names an absorbed one.
+        """
+        if self.controller == "compensatable":
+            return np.array([i for i, c in enumerate(classes) if c == "compensatable"], dtype=int)
+        if self.controller == "full":
+            return np.array([i for i, c in enumerate(classes) if c != "absorbed"], dtype=int)
+        names = pset.names
+        out = []
+        for name in self.controller:
+            if name not in names:
+                close = difflib.get_close_matches(name, names, n=1)
+                hint = f"; did you mean '{close[0]}'?" if close else "; see `pkmtol errors` for the names"
+                raise InvalidRequestError(
+                    f"controller parameter '{name}' is not in the {pset.kind} set{hint}"
+                )
+            out.append(names.index(name))
+        return np.array(sorted(set(out)), dtype=int)
+
+    @property
+    def controller_label(self) -> str:
+        """``compensatable``, ``full`` or ``explicit (k)``."""
+        return self.controller if isinstance(self.controller, str) else f"explicit ({len(self.controller)})"
+
+    def manufacturing_sigma(self, pset: ParameterSet) -> np.ndarray:
+        """σ per parameter before calibration (n,) [m or rad], by unit."""
+        return np.array(
+            [self.manufacturing_length_m if u == "m" else self.manufacturing_angle_rad for u in pset.units]
+        )
+
+
+def settings_from_table(table: dict[str, Any], path: Path | str, **overrides: Any) -> CalibrationSettings:
+    """Settings from a ``[calibration]`` table (``mechanism.toml``), then ``overrides`` (non-None only).
+
+    Raises:
+        MechanismFormatError: an unknown key (with a "did you mean"), or a mistyped value.
+    """
+    kw: dict[str, Any] = {}
+    for key, value in table.items():
+        if key not in TABLE_KEYS:
+            close = difflib.get_close_matches(key, TABLE_KEYS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else f"; known keys: {', '.join(TABLE_KEYS)}"
+            raise MechanismFormatError(path, f"calibration.{key}", f"unknown key{hint}")
+        try:
+            kw.update(_read(key, value))
+        except (InvalidRequestError, TypeError, ValueError) as err:
+            raise MechanismFormatError(path, f"calibration.{key}", str(err)) from err
+    kw.update({k: v for k, v in overrides.items() if v is not None})
+    try:
+        return CalibrationSettings(**kw)
+    except InvalidRequestError as err:
+        raise MechanismFormatError(path, "calibration", str(err)) from err
+
+
+def _read(key: str, value: Any) -> dict[str, Any]:
+    if key == "targets_m":
+        pts = np.asarray(value, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+            raise InvalidRequestError(f"expected a list of [x, y, z] points in metres, got {value!r}")
+        return {"targets_m": tuple(tuple(float(c) for c in p) for p in pts)}
+    if key == "noise":
+        return {"noise_m": parse_length(_with_unit(value, key), "calibration.noise")}
+    if key == "manufacturing_length":
+        return {"manufacturing_length_m": parse_length(_with_unit(value, key), key)}
+    if key == "manufacturing_angle":
+        return {"manufacturing_angle_rad": parse_angle(value, key)}
+    if key == "controller":
+        if isinstance(value, list):
+            if not all(isinstance(x, str) for x in value):
+                raise InvalidRequestError(f"expected a list of parameter names, got {value!r}")
+            return {"controller": tuple(value)}
+        return {"controller": value}
+    if key == "prior":
+        if not isinstance(value, bool):
+            raise InvalidRequestError(f"expected true or false, got {value!r}")
+        return {"prior": value}
+    if key == "rank_tolerance":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise InvalidRequestError(f"expected a number, got {value!r}")
+        return {"rank_tolerance": float(value)}
+    return {key: value}
+
+
+def _with_unit(value: Any, key: str) -> str:
+    if not isinstance(value, str):
+        raise InvalidRequestError(f"give {key} with its unit, e.g. '0.01 mm', got {value!r}")
+    return value

@@ -1,0 +1,213 @@
+"""``pkmtol calibrate``: plan a calibration, simulate it on exact kinematics, or identify from data."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pkmtol.calibration.measurement_files import plan_csv, read_measurements
+from pkmtol.calibration.real_data import calibrate_measurements
+from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
+from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
+from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
+from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
+from pkmtol.files import write_atomic
+from pkmtol.model.loader import load_mechanism
+from pkmtol.model.mechanism import Mechanism
+from pkmtol.present.calibration_tables import (
+    dumps,
+    identified_csv,
+    identified_json,
+    identified_text,
+    plan_json,
+    plan_text,
+    residuals_csv,
+    study_json,
+    study_text,
+)
+from pkmtol.present.tables import check_output_folder
+
+
+def add(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``pkmtol calibrate`` and its options."""
+    p = subparsers.add_parser(
+        "calibrate",
+        help="kinematic calibration: measurement plan, exact simulation study, identification from data",
+        description="Without --simulate or --measurements: choose the calibration poses (D-optimal by "
+        "default), print what they identify (rank, conditioning, base parameters, unidentifiable "
+        "combinations, correlations) and how the plan compares with random plans of the same size, "
+        "with the predicted accuracy after calibration; --plan writes the poses for the measurement "
+        "session. --simulate: draw machines, measure them on exact kinematics with tracker noise, "
+        "identify, compensate and measure held-out poses (docs/calibration.md). --measurements: "
+        "identify the controller model from a tracker's measurements and write the identified "
+        "parameters and calibrated limb URDFs. Settings come from the [calibration] table of "
+        "mechanism.toml; the options override it.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    add_plan_options(p)
+    p.add_argument("--plan", type=Path, default=None, help="write the chosen poses to this CSV file")
+    p.add_argument("--simulate", action="store_true", help="run the exact-kinematics calibration study")
+    p.add_argument("--machines", type=int, default=100, help="machines of the study (default 100)")
+    p.add_argument("--holdout", type=int, default=200, help="held-out random poses (default 200)")
+    p.add_argument("--measurements", type=Path, default=None, help="identify from this measurement CSV")
+    p.add_argument(
+        "--tolerances",
+        type=Path,
+        default=None,
+        help="allocation.json of a `pkmtol allocate` run: the σ of the uncompensatable errors "
+        "(default: a quick FOSM allocation at the design β)",
+    )
+    p.add_argument("--random-sets", type=int, default=10, help="random plans to compare with (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default out/<robot>/calibration)")
+    p.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    p.set_defaults(run=_run)
+
+
+def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: int) -> tuple[np.ndarray, str]:
+    """Design-β σ of every parameter (NaN where not allocated), and where they came from."""
+    if path is not None:
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            col = int(np.argmin(np.abs(np.asarray(doc["beta"], dtype=float) - float(doc["design_beta"]))))
+            by_name = {p["name"]: p["tolerance"] for p in doc["parameters"]}
+            kind = doc["parameter_set"]
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise MechanismFormatError(
+                path, "-", f"not an allocation.json of `pkmtol allocate` ({err})"
+            ) from err
+        if kind != pset.kind:
+            raise InvalidRequestError(
+                f"{path} allocates the '{kind}' parameter set but this calibration uses '{pset.kind}'; "
+                f"give --set {kind}"
+            )
+        tol = np.full(len(pset), np.nan)
+        for i, name in enumerate(pset.names):
+            t = by_name.get(name)
+            if t is not None and t[col] is not None:
+                tol[i] = float(t[col])
+        return tol, f"tolerances from {path}"
+    res = allocate(
+        mech,
+        DesignOptions(
+            parameter_set=pset.kind,
+            samples=2000,
+            verification_poses=200,
+            exact_samples=0,
+            claim_poses=50,
+            seed=seed,
+        ),
+    )
+    return res.tolerances[
+        :, res.design_column
+    ], f"FOSM tolerances at β = {res.design_beta:g} (quick allocation)"
+
+
+def _run(args: argparse.Namespace) -> int:
+    mech = load_mechanism(args.robot)
+    for name, value, low in (
+        ("--machines", args.machines, 1),
+        ("--holdout", args.holdout, 1),
+        ("--seed", args.seed, 0),
+    ):
+        if value < low:
+            raise InvalidRequestError(f"{name} must be ≥ {low}, got {value}")
+    if args.simulate and args.measurements is not None:
+        raise InvalidRequestError("give either --simulate or --measurements, not both")
+    settings = plan_settings(mech, args, args.seed)
+    pset = parameter_set(mech, args.pset or default_set(mech))
+    out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
+    check_output_folder(out)
+    if args.plan is not None:
+        check_output_folder(args.plan.parent if str(args.plan.parent) else Path("."))
+    classes = grid_classes(mech, pset)
+    files: list[tuple[Path, bytes]] = []
+    figures: dict[str, object] = {}
+    if args.measurements is not None:
+        meas = read_measurements(args.measurements, mech, settings.targets(mech).shape[0])
+        sigma = None
+        if settings.prior:
+            tol, _ = _tolerances(mech, pset, args.tolerances, args.seed)
+            sigma = design_sigma(pset, classes, settings, tol)
+        cal = calibrate_measurements(mech, pset, classes, settings, meas, args.measurements, sigma)
+        text = identified_text(cal)
+        files += [
+            (out / "identified.json", dumps(identified_json(cal, pset.names)).encode()),
+            (out / "identified.csv", identified_csv(cal).encode()),
+            (out / "identified.md", ("# Identified parameters\n\n" + identified_text(cal, True)).encode()),
+            (out / "residuals.csv", residuals_csv(cal).encode()),
+        ]
+        try:
+            urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
+            toml = calibrated_toml(mech, pset, cal.result.estimate)
+            files += write_calibrated_folder(out / "calibrated", urdfs, toml)
+        except Exception as err:  # noqa: BLE001 - reported, the identification stands
+            print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
+        print(text, end="")
+    else:
+        tol, source = _tolerances(mech, pset, args.tolerances, args.seed)
+        sigma = design_sigma(pset, classes, settings, tol)
+        print(
+            f"machines drawn with: compensatable errors at the manufacturing σ "
+            f"({1e3 * settings.manufacturing_length_m:g} mm, "
+            f"{1e3 * settings.manufacturing_angle_rad:g} mrad); "
+            f"uncompensatable errors at the {source}"
+        )
+        report = plan_report(
+            mech,
+            pset,
+            classes,
+            settings,
+            sigma,
+            mech.target_m,
+            random_sets=args.random_sets,
+            holdout=args.holdout,
+        )
+        text = plan_text(report)
+        files += [
+            (out / "calibration_plan.json", dumps(plan_json(report, pset.names)).encode()),
+            (out / "calibration_plan.md", ("# Calibration plan\n\n" + plan_text(report, True)).encode()),
+        ]
+        if args.plan is not None:
+            files.append(
+                (args.plan, plan_csv(mech, report.plan.maps.commands, report.plan.maps.points_m).encode())
+            )
+        study = None
+        if args.simulate:
+            rep = simulate(mech, pset, classes, settings, sigma, mech.target_m, args.machines, args.holdout)
+            study = rep.study
+            text += "\n" + study_text(rep)
+            files += [
+                (out / "study.json", dumps(study_json(rep)).encode()),
+                (out / "study.md", ("# Calibration study\n\n" + study_text(rep, True)).encode()),
+            ]
+        if not args.no_figures:
+            try:
+                from pkmtol.present.calibration_figures import (
+                    histogram_figure,
+                    pose_count_figure,
+                    render_figures,
+                )
+
+                if report.curve:
+                    figures["p99_against_poses"] = pose_count_figure(report, study)
+                if study is not None:
+                    figures["calibration_histogram"] = histogram_figure(study)
+                files += render_figures(figures, out)
+            except FiguresError as err:
+                print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
+        print(text, end="")
+    for path, data in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(path, data)
+        print(f"wrote {path}")
+    if not files:  # pragma: no cover - every mode writes its tables
+        raise OutputError(out, "nothing to write")
+    return 0

@@ -1,0 +1,191 @@
+"""The ``exact`` and ``cost`` designs of the toleranced errors at R* = Φ(design β), in any compensation mode.
+
+``exact`` keeps the equal-effect shape and scales it so that the exact reliability meets R* (at the
+worst pose, at every grid pose, or on average); ``cost`` minimises the cost model under
+``R ≥ R*`` at every grid pose. With a calibration the tracker noise enters as a fixed covariance;
+with an orientation target, ``exact`` scales to the joint reliability
+``P(Δλ ≤ Δλ* and Δα ≤ Δα*)`` (:mod:`pkmtol.design.orientation`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from scipy import optimize
+
+from pkmtol.design.cost import cost_model, cost_optimal
+from pkmtol.design.exact import criterion_value, scale_design
+from pkmtol.design.orientation import joint_covariance, joint_reliability
+from pkmtol.design.reliability import reliability_fosm
+from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
+from pkmtol.exceptions import InvalidRequestError
+from pkmtol.model.mechanism import Mechanism
+
+
+class MethodChoice(Protocol):
+    """What :func:`method_design_for` reads of the options (``DesignOptions`` has both)."""
+
+    @property
+    def method(self) -> str:
+        """``exact`` or ``cost``."""
+
+    @property
+    def criterion(self) -> str:
+        """``worst``, ``every`` or ``average``."""
+
+
+@dataclass(frozen=True, eq=False)
+class MethodDesign:
+    """A design by the ``exact`` or ``cost`` method (tolerances of the toleranced parameters, SI).
+
+    Attributes:
+        method: ``exact`` or ``cost``.
+        criterion: ``worst`` / ``every`` / ``average`` (``every`` for cost).
+        target_reliability: R* = Φ(design β).
+        sigma: Tolerances (len(uncompensatable),) [SI].
+        reliability: Exact Gaussian R at each grid pose (the joint reliability with an orientation
+            target).
+        cost: Total cost of ``sigma`` under the cost model.
+        reference_sigma: The equal-effect design scaled to the same true R (min over the grid).
+        reference_cost: Its cost.
+    """
+
+    method: str
+    criterion: str
+    target_reliability: float
+    sigma: np.ndarray
+    reliability: np.ndarray
+    cost: float
+    reference_sigma: np.ndarray
+    reference_cost: float
+
+
+def method_design_for(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    grid: Sweep,
+    unc: np.ndarray,
+    fosm_sigma: np.ndarray,
+    target: float,
+    design_beta: float,
+    worst: int,
+    opt: MethodChoice,
+    maps: AccuracyMaps | None = None,
+    orientation: tuple[np.ndarray, float] | None = None,
+) -> MethodDesign:
+    """The ``exact`` or ``cost`` design of the toleranced errors at R* = Φ(design β).
+
+    Args:
+        mechanism: The mechanism (its ``[cost]`` table feeds the cost model).
+        pset: Its parameter set.
+        grid: The task-space grid sweep.
+        unc: Indices of the toleranced parameters.
+        fosm_sigma: Their FOSM tolerances at the design β [SI] (the equal-effect shape).
+        target: Δλ* [m].
+        design_beta: β; R* = Φ(β).
+        worst: Grid index of the design point.
+        opt: ``opt.method`` (``exact`` or ``cost``) and ``opt.criterion``.
+        maps: The compensation mode's maps on the grid (default: the paper's ideal ones).
+        orientation: ``(tool axis, Δα* [rad])`` to meet the orientation target too (``exact``).
+
+    Raises:
+        InvalidRequestError: unknown method, ``cost`` with an orientation target, or a target
+            no tolerance reaches.
+    """
+    maps = maps if maps is not None else mode_maps(grid, "ideal")
+    r_star = float(reliability_fosm(design_beta))
+    J = maps.position[:, :, unc]
+    extra = None
+    if maps.position_noise.shape[2] and maps.noise_m > 0:
+        N = maps.position_noise
+        extra = maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
+    model = cost_model([pset.parameters[i] for i in unc], mechanism.extra.get("cost"))
+    if orientation is not None:
+        if opt.method == "cost":
+            raise InvalidRequestError(
+                "--method cost with an orientation target is not available: use --method exact "
+                "(equal-effect shape scaled to the joint reliability) or fosm"
+            )
+        axis, target_rad = orientation
+        sub = maps.subset(unc)
+        reference = _scale_joint(sub, fosm_sigma, target, target_rad, axis, r_star, "every", worst)
+        sigma, rel = _scale_joint(sub, fosm_sigma, target, target_rad, axis, r_star, opt.criterion, worst)
+        criterion = opt.criterion
+    else:
+        ref = scale_design(J, fosm_sigma, target, r_star, "every", worst, extra)
+        reference = (ref.sigma, ref.reliability)
+        if opt.method == "exact":
+            d = scale_design(J, fosm_sigma, target, r_star, opt.criterion, worst, extra)
+            sigma, rel, criterion = d.sigma, d.reliability, opt.criterion
+        elif opt.method == "cost":
+            c = cost_optimal(
+                J, model, target, r_star, ref.sigma, [pset.names[i] for i in unc], extra_cov=extra
+            )
+            sigma, rel, criterion = c.sigma, c.reliability, "every"
+        else:
+            raise InvalidRequestError(f"unknown method {opt.method!r}; use fosm, exact or cost")
+    return MethodDesign(
+        method=opt.method,
+        criterion=criterion,
+        target_reliability=r_star,
+        sigma=sigma,
+        reliability=rel,
+        cost=model.cost(sigma),
+        reference_sigma=reference[0],
+        reference_cost=model.cost(reference[0]),
+    )
+
+
+def _scale_joint(
+    maps: AccuracyMaps,
+    shape: np.ndarray,
+    target_m: float,
+    target_rad: float,
+    axis: np.ndarray,
+    r_star: float,
+    criterion: str,
+    worst: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scale ``shape`` so that the criterion's joint reliability equals ``r_star``: (σ, R per pose)."""
+    finite = np.isfinite(shape)
+    base = np.where(finite, shape, 0.0)
+    sel = maps if criterion != "worst" else _one_pose(maps, worst)
+    w_idx = worst if criterion != "worst" else 0
+
+    def rel(s: float, m: AccuracyMaps) -> np.ndarray:
+        return joint_reliability(joint_covariance(m, base * s, axis), target_m, target_rad)
+
+    def excess(log_s: float) -> float:
+        return criterion_value(rel(math.exp(log_s), sel), criterion, w_idx) - r_star
+
+    lo, hi = -1.0, 1.0
+    while excess(lo) < 0:
+        lo -= 2.0
+        if lo < -40:
+            raise InvalidRequestError(
+                "no scale of the tolerances meets both the position and the orientation target: what "
+                "no tolerance changes (the calibration's noise) already exceeds one of them"
+            )
+    while excess(hi) > 0:
+        hi += 2.0
+        if hi > 40:
+            raise InvalidRequestError("the design meets both targets at any scale: nothing depends on it")
+    s = math.exp(optimize.brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10))
+    return np.where(finite, shape * s, np.inf), rel(s, maps)
+
+
+def _one_pose(maps: AccuracyMaps, k: int) -> AccuracyMaps:
+    return AccuracyMaps(
+        mode=maps.mode,
+        position=maps.position[k : k + 1],
+        rotation=maps.rotation[k : k + 1],
+        position_noise=maps.position_noise[k : k + 1],
+        rotation_noise=maps.rotation_noise[k : k + 1],
+        noise_m=maps.noise_m,
+        rotations=maps.rotations[k : k + 1],
+    )

@@ -1,0 +1,177 @@
+"""Verification of a design in any compensation mode, with the tool axis's tilt beside Δλ.
+
+The linear model draws the toleranced errors from the verification distribution at their
+tolerances, the other non-absorbed errors (``calibrated``: the identified ones) Gaussian at their
+manufacturing σ, and the tracker noise Gaussian at σ_m; Δλ = ‖e‖ and Δα = ‖(R a) × θ‖ come from the
+mode's maps. The exact subsample solves the same draws on exact kinematics: ``ideal`` commands
+the Eq. 25 correction, ``none`` the nominal commands, ``calibrated`` simulates the whole
+calibration (measure, identify, compensate by the identified model's inverse kinematics).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+from tqdm import tqdm
+
+from pkmtol.calibration.compensation import PoseErrors
+from pkmtol.calibration.machine import Machine
+from pkmtol.calibration.maps import PoseMaps
+from pkmtol.calibration.plan import CalibrationPlan
+from pkmtol.calibration.study import calibrate_and_evaluate
+from pkmtol.design.verification import Verification, failure_stats, sample_errors
+from pkmtol.error_model.compensation import AccuracyMaps
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
+from pkmtol.exceptions import KinematicsError
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.mechanism import Mechanism
+
+#: ``(pose index, full parameter vector, noise) → (P error (3,), rotation (3,))`` or None (unassembled).
+ExactError = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray] | None]
+
+
+def ideal_exact(mechanism: Mechanism, pset: ParameterSet, sweep_: Sweep, corrected: bool) -> ExactError:
+    """Exact pose errors with the Eq. 25 correction (``corrected``) or the nominal commands."""
+    chain = ClosedChain(mechanism)
+
+    def error(k: int, delta: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        pose, sep = sweep_.poses[k], sweep_.separations[k]
+        if sep.redundancy and sep.incompatible_map is not None:
+            y = np.vstack([sep.Y_a, sep.Y_c]) @ delta
+            if np.linalg.norm(sep.incompatible_map @ delta) > 1e-9 * max(float(np.linalg.norm(y)), 1e-300):
+                return None  # an over-constrained machine these errors cannot assemble
+        u = pose.q_all[chain.actuated_idx] + (sep.correction @ delta if corrected else 0.0)
+        try:
+            actual = Machine(mechanism, pset, delta).forward(u, pose.q_all)
+        except KinematicsError:
+            return None
+        r = pose.oMp.rotation
+        return actual.p_m - pose.p_m, r @ pin.log3(r.T @ actual.oMp.rotation)
+
+    return error
+
+
+def calibrated_exact(
+    mechanism: Mechanism, pset: ParameterSet, plan: CalibrationPlan, poses: PoseMaps
+) -> ExactError:
+    """Exact pose errors after simulating the plan's calibration of the drawn machine."""
+
+    def error(k: int, delta: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        try:
+            errs, _ = calibrate_and_evaluate(
+                mechanism, pset, plan, Machine(mechanism, pset, delta), noise, poses.subset(np.array([k]))
+            )
+        except KinematicsError:
+            return None
+        if not errs.solved[0]:
+            return None
+        return errs.position_m[0], errs.rotation_rad[0]
+
+    return error
+
+
+def verify_mode(
+    maps: AccuracyMaps,
+    points_m: np.ndarray,
+    n_params: int,
+    columns: np.ndarray,
+    sigma: np.ndarray,
+    target_m: float,
+    distribution: str,
+    samples: int,
+    exact_samples: int,
+    rng: np.random.Generator,
+    exact: ExactError | None,
+    background: tuple[np.ndarray, np.ndarray] | None = None,
+    orientation: tuple[np.ndarray, float | None] | None = None,
+    progress: bool = False,
+) -> Verification:
+    """Verify tolerances ``sigma`` of ``columns`` by Monte Carlo in the mode of ``maps``.
+
+    Args:
+        maps: The mode's maps at the random verification poses (sample ``s`` uses pose ``s mod m``).
+        points_m: Shape (m, 3): those poses' P [m].
+        n_params: Size of the parameter set.
+        columns: Toleranced parameters; ``sigma`` their tolerances (``inf``: held at 0).
+        sigma: Tolerances [SI].
+        target_m: Δλ* [m].
+        distribution: One of ``DISTRIBUTIONS`` (of the toleranced errors).
+        samples: Linear-model samples.
+        exact_samples: Exact subsample size (the first samples).
+        rng: Random generator.
+        exact: Exact evaluation of a sample (None: linear only).
+        background: ``(columns, σ)`` drawn Gaussian beside (identified errors at manufacturing σ).
+        orientation: ``(tool axis, Δα* or None)``: also verify the tilt.
+        progress: Progress bar over the exact subsample.
+    """
+    m = len(maps)
+    point_of = np.arange(samples) % m
+    eta = sample_errors(distribution, np.where(np.isfinite(sigma), sigma, 0.0), samples, rng)
+    delta = np.zeros((samples, n_params))
+    delta[:, columns] = eta
+    if background is not None and len(background[0]):
+        delta[:, background[0]] = rng.standard_normal((samples, len(background[0]))) * background[1]
+    M = maps.position_noise.shape[2]
+    noise = rng.standard_normal((samples, M)) * maps.noise_m if M else np.zeros((samples, 0))
+    e = np.einsum("sin,sn->si", maps.position[point_of], delta)
+    if M:
+        e += np.einsum("siM,sM->si", maps.position_noise[point_of], noise)
+    dlam = np.linalg.norm(e, axis=1)
+    tilt = None
+    if orientation is not None:
+        tmap, tnoise = maps.tilt_maps(orientation[0])
+        t = np.einsum("sin,sn->si", tmap[point_of], delta)
+        if M:
+            t += np.einsum("siM,sM->si", tnoise[point_of], noise)
+        tilt = np.linalg.norm(t, axis=1)
+    exact_stats = lin_sub = tilt_exact_stats = None
+    max_diff = float("nan")
+    unassembled = 0
+    if exact is not None and exact_samples > 0:
+        k = min(exact_samples, samples)
+        dl_exact = np.full(k, np.nan)
+        tl_exact = np.full(k, np.nan)
+        axis = None if orientation is None else orientation[0] / np.linalg.norm(orientation[0])
+        for s in tqdm(
+            range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False
+        ):
+            got = exact(int(point_of[s]), delta[s], noise[s])
+            if got is None:
+                continue
+            dp, th = got
+            dl_exact[s] = float(np.linalg.norm(dp))
+            if axis is not None:
+                rk = maps.rotations[point_of[s]]
+                pe = PoseErrors(dp[None], th[None], np.ones(1, dtype=bool))
+                tl_exact[s] = float(pe.tilt_rad(axis, rk[None])[0])
+        ok = np.isfinite(dl_exact)
+        unassembled = int(k - ok.sum())
+        if ok.any():
+            exact_stats = failure_stats(dl_exact[ok], target_m)
+            lin_sub = failure_stats(dlam[:k][ok], target_m)
+            max_diff = float(np.max(np.abs(dl_exact[ok] - dlam[:k][ok])) / target_m)
+            if orientation is not None and orientation[1] is not None:
+                tilt_exact_stats = failure_stats(tl_exact[ok], orientation[1])
+    tilt_stats = None
+    if tilt is not None and orientation is not None and orientation[1] is not None:
+        tilt_stats = failure_stats(tilt, orientation[1])
+    joint = None
+    if tilt is not None and orientation is not None and orientation[1] is not None:
+        joint = failure_stats(np.maximum(dlam / target_m, tilt / orientation[1]), 1.0)
+    return Verification(
+        distribution=distribution,
+        linear=failure_stats(dlam, target_m),
+        exact=exact_stats,
+        linear_subsample=lin_sub,
+        max_relative_difference=max_diff,
+        dlam_linear_m=dlam,
+        pose_points_m=points_m,
+        exact_unassembled=unassembled,
+        tilt_linear_rad=tilt,
+        tilt=tilt_stats,
+        tilt_exact=tilt_exact_stats,
+        joint=joint,
+    )

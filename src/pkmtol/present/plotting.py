@@ -1,0 +1,41 @@
+"""matplotlib, imported only when a figure is drawn: a figure without pyplot, and its bytes."""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+from pkmtol.exceptions import FiguresError
+
+
+def require_matplotlib() -> tuple[Any, Any]:
+    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as err:
+        raise FiguresError(
+            f"the figures need matplotlib ({err}); install it with "
+            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`)"
+        ) from err
+    return Figure, FigureCanvasAgg
+
+
+def new_figure(size: tuple[float, float]) -> Any:
+    """A matplotlib ``Figure`` of ``size`` inches with an Agg canvas (no pyplot, no global state)."""
+    figure_cls, canvas_cls = require_matplotlib()
+    fig = figure_cls(figsize=size, layout="constrained")
+    canvas_cls(fig)
+    return fig
+
+
+def render(fig: Any, fmt: str, dpi: int) -> bytes:
+    """The figure as ``fmt`` (png, svg, pdf) bytes, without dates or software stamps (reproducible)."""
+    buf = io.BytesIO()
+    fig.savefig(
+        buf,
+        format=fmt,
+        dpi=dpi,
+        metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
+    )
+    return buf.getvalue()

@@ -1,0 +1,195 @@
+"""``pkmtol calibrate``: the plan, the study, real data round trip, and bad measurement files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pkmtol.calibration.identification import model_positions
+from pkmtol.calibration.machine import Machine
+from pkmtol.calibration.measurement_files import measurements_csv, read_measurements
+from pkmtol.calibration.plan import candidate_pool, make_plan
+from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.cli import main
+from pkmtol.error_model.parameters import parameter_set
+from pkmtol.error_model.sweep import sweep
+from pkmtol.exceptions import MeasurementFileError
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.loader import load_mechanism
+
+ROOT = Path(__file__).resolve().parents[1]
+SEED = ROOT / "robots" / "r2rps_ups"
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """A simulated measurement session of the seed robot: 30 D-optimal poses, P measured."""
+    mech = load_mechanism(SEED)
+    pset = parameter_set(mech, "urdf")
+    chain = ClosedChain(mech)
+    classes = sweep(mech, pset, mech.task_space.grid(), chain).classify()
+    settings = CalibrationSettings(candidates=50)
+    plan = make_plan(mech, pset, classes, settings, candidate_pool(mech, pset, settings, chain), poses=30)
+    rng = np.random.default_rng(3)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    y, _ = model_positions(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q, plan.targets_m)
+    y = y + rng.standard_normal(y.shape) * 1e-5
+    folder = tmp_path_factory.mktemp("session")
+    path = folder / "measurements.csv"
+    path.write_text(measurements_csv(mech, plan.maps.commands, y))
+    return mech, pset, plan, delta, path
+
+
+def test_real_data_round_trip_writes_loadable_calibrated_urdfs(session, tmp_path, capsys):
+    mech, pset, plan, delta, path = session
+    out = tmp_path / "out"
+    assert (
+        main(["calibrate", str(SEED), "--set", "urdf", "--measurements", str(path), "--out", str(out)]) == 0
+    )
+    text = capsys.readouterr().out
+    assert "residual RMS per coordinate" in text and "base parameter" in text
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_m"] < 1.2e-5 < doc["rms_before_m"]
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    identified = Machine(mech, pset, estimate)
+    calibrated = load_mechanism(out / "calibrated")
+    chain = ClosedChain(calibrated, check_limits=False)
+    worst = 0.0
+    for u, q in zip(plan.maps.commands, plan.maps.q, strict=True):
+        a = identified.forward(u, q)
+        b = chain.forward(u, q - identified.offsets)
+        worst = max(
+            worst, float(np.linalg.norm(a.p_m - b.p_m)), float(np.abs(a.oMp.rotation - b.oMp.rotation).max())
+        )
+    assert worst <= 1e-12
+    # the calibration is real: held at these poses the identified machine is within the noise
+    assert (out / "residuals.csv").read_text().count("\n") == 31
+
+
+def _rewrite(path: Path, tmp: Path, edit) -> Path:
+    lines = path.read_text().splitlines()
+    new = tmp / "bad.csv"
+    new.write_text("\n".join(edit(lines)) + "\n")
+    return new
+
+
+BAD = {
+    "missing column": (
+        lambda ls: (
+            [",".join(c for c in ls[0].split(",") if not c.startswith("z"))]
+            + [",".join(r.split(",")[:-1]) for r in ls[1:]]
+        ),
+        "'z'",
+    ),
+    "unknown joint": (
+        lambda ls: [ls[0].replace("limb2.limb2_p3", "limb2.limb2_p9")] + ls[1:],
+        "limb2.limb2_p9",
+    ),
+    "nan": (lambda ls: [ls[0], ls[1].rsplit(",", 1)[0] + ",nan"] + ls[2:], "not a finite number"),
+    "unit missing": (lambda ls: [ls[0].replace("x [mm]", "x")] + ls[1:], "'x'"),
+    "unit wrong": (lambda ls: [ls[0].replace("x [mm]", "x [deg]")] + ls[1:], "deg"),
+    "duplicated row": (lambda ls: ls + [ls[3]], "duplicated"),
+    "too few poses": (lambda ls: ls[:6], "fewer than the 23 identifiable"),
+    "outside limits": (
+        lambda ls: [ls[0], "0," + "5000.0," + ",".join(ls[1].split(",")[2:])] + ls[2:],
+        "outside the joint's limits",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_measurement_file_is_a_named_error_and_writes_nothing(session, tmp_path, capsys, case):
+    _, _, _, _, path = session
+    edit, culprit = BAD[case]
+    bad = _rewrite(path, tmp_path, edit)
+    out = tmp_path / "out"
+    code = main(["calibrate", str(SEED), "--set", "urdf", "--measurements", str(bad), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "pkmtol: error:" in err and culprit in err, err
+    assert not any(p.is_file() for p in out.rglob("*"))
+
+
+def test_reader_groups_rows_into_poses_and_checks_targets(session, tmp_path):
+    mech, _, plan, _, path = session
+    m = read_measurements(path, mech, 1)
+    np.testing.assert_allclose(m.commands, plan.maps.commands, rtol=0, atol=1e-12)
+    assert m.measured_m.shape == (30, 1, 3)
+    with pytest.raises(MeasurementFileError, match="lacks target"):
+        read_measurements(path, mech, 2)
+
+
+def test_plan_command_writes_the_poses_for_the_session(tmp_path, capsys):
+    out = tmp_path / "plan"
+    code = main(
+        [
+            "calibrate",
+            str(SEED),
+            "--set",
+            "urdf",
+            "--poses",
+            "20",
+            "--random-sets",
+            "3",
+            "--candidates",
+            "40",
+            "--out",
+            str(out),
+            "--plan",
+            str(out / "plan.csv"),
+            "--no-figures",
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "rank 23 of 46" in text and "lower predicted p99 than" in text
+    rows = (out / "plan.csv").read_text().splitlines()
+    assert rows[0].startswith("pose,limb1.limb1_p3 [mm]") and len(rows) == 21
+    doc = json.loads((out / "calibration_plan.json").read_text())
+    assert doc["identifiability"]["rank"] == 23 and len(doc["random_plans"]) == 3
+
+
+def test_simulate_command_reports_every_row(tmp_path, capsys):
+    out = tmp_path / "sim"
+    code = main(
+        [
+            "calibrate",
+            str(SEED),
+            "--set",
+            "urdf",
+            "--simulate",
+            "--machines",
+            "2",
+            "--holdout",
+            "20",
+            "--poses",
+            "25",
+            "--random-sets",
+            "1",
+            "--candidates",
+            "40",
+            "--out",
+            str(out),
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0
+    for row in (
+        "before calibration",
+        "Eq. 25, ideal compensation (exact)",
+        "compensatable, 25 d-optimal poses",
+        "full, 25 random poses",
+        "linear prediction",
+    ):
+        assert row in text
+    doc = json.loads((out / "study.json").read_text())
+    assert len(doc["cases"]) == 4
+    for case in doc["cases"]:
+        exact, lin = case["exact"], case["linear_prediction"]
+        assert abs(exact["mean_dlambda_m"] - lin["mean_dlambda_m"]) < 0.05 * lin["mean_dlambda_m"]
+    assert (out / "calibration_histogram.png").is_file() and (out / "p99_against_poses.svg").is_file()
