@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,8 +11,9 @@ from tqdm import tqdm
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.separation import Separation, separate_many
 from pkmtol.exceptions import KinematicsError
-from pkmtol.kinematics.batch import BatchChain, Solutions
+from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.kinematics.continuation import continuation
 from pkmtol.model.mechanism import Mechanism
 
 #: Relative size of a projection below which it counts as zero (classification).
@@ -21,8 +22,6 @@ ZERO_TOLERANCE = 1e-9
 CLASSES = ("absorbed", "compensatable", "uncompensatable")
 #: Poses solved together (bounds the solver's working memory).
 CHUNK = 512
-#: A continuation wave takes the points within this factor of its reach (see :func:`sweep`).
-REACH = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,10 +96,7 @@ def sweep(
 
     The points are solved in batches (:class:`pkmtol.kinematics.batch.BatchChain`,
     :func:`pkmtol.error_model.separation.separate_many`). Without ``guesses``, they are reached by
-    continuation: the first point from the refined home, then, wave after wave, every point within
-    reach of the solved ones from a tangent step off its nearest solved point (a wave takes the
-    points no further from the solved set than the larger of the grid's nearest-neighbour spacing
-    and the closest unsolved point).
+    continuation from the refined home (:func:`pkmtol.kinematics.continuation.continuation`).
 
     Args:
         mechanism: The mechanism.
@@ -128,15 +124,9 @@ def sweep(
             results[part] = separate_many(mechanism, pset, batch, sols)
             bar.update(part.stop - part.start)
     else:
-        waves, parts = [], []
-        for wave, sols in _continuation(batch, points, chain.home()):
-            waves.append(wave)
-            parts.append(sols)
-            bar.update(len(wave))
-        order = np.concatenate(waves)
-        solved = Solutions.concatenate(parts).take(np.argsort(order))
-        for start in range(0, len(order), CHUNK):
-            part = slice(start, min(start + CHUNK, len(order)))
+        solved = continuation(batch, points, chain.home(), progress=bar.update)
+        for start in range(0, m, CHUNK):
+            part = slice(start, min(start + CHUNK, m))
             results[part] = separate_many(
                 mechanism, pset, batch, solved.take(np.arange(part.start, part.stop))
             )
@@ -155,59 +145,18 @@ def sweep(
     )
 
 
-def _continuation(
-    batch: BatchChain, points: np.ndarray, home: np.ndarray
-) -> Iterator[tuple[np.ndarray, Solutions]]:
-    """Waves of points solved from their nearest solved neighbour (``(indices, solutions)`` each).
+def guesses_near(grid: Sweep, points_m: np.ndarray) -> np.ndarray:
+    """Initial guesses (m, Σ nq) for ``points_m`` (m, 3): a tangent step off the nearest grid pose.
 
-    Stops at the first wave whose solutions all fail when nothing else is left to try from.
+    ``q_k + (∂q/∂P)_k (p − p_k)`` with ``k`` the nearest point of ``grid`` (its plain joint values
+    when the pose has no tangent).
     """
-    m = len(points)
-    first = batch.inverse(points[:1], home[None])
-    yield np.zeros(1, dtype=int), first
-    if m == 1 or first.errors[0] is not None:
-        return
-    spacing = _nearest_neighbour_spacing(points)
-    # nearest solved point (index into the solved list) and its distance, for every point
-    solved_q = [first.q[0]]
-    solved_p = [first.p_m[0]]
-    solved_dir = [first.system_inverse[0][:, -3:]]
-    near_d = np.linalg.norm(points - points[0], axis=1)
-    near_i = np.zeros(m, dtype=int)
-    todo = np.ones(m, dtype=bool)
-    todo[0] = False
-    while todo.any():
-        cand = np.flatnonzero(todo)
-        reach = max(spacing, float(near_d[cand].min())) * REACH
-        wave = cand[near_d[cand] <= reach][:CHUNK]
-        parents = near_i[wave]
-        guesses = np.array(
-            [
-                solved_q[j] + solved_dir[j] @ (points[k] - solved_p[j])
-                for k, j in zip(wave, parents, strict=True)
-            ]
-        )
-        sols = batch.inverse(points[wave], guesses)
-        todo[wave] = False
-        yield wave, sols
-        new = [pos for pos in range(len(wave)) if sols.errors[pos] is None]
-        for pos in new:
-            solved_q.append(sols.q[pos])
-            solved_p.append(sols.p_m[pos])
-            solved_dir.append(sols.system_inverse[pos][:, -3:])
-        if new:
-            d = np.linalg.norm(points[:, None, :] - points[wave[new]][None], axis=2)  # (m, new)
-            best = d.argmin(axis=1)
-            closer = d[np.arange(m), best] < near_d
-            near_i[closer] = len(solved_q) - len(new) + best[closer]
-            near_d[closer] = d[np.arange(m), best][closer]
-
-
-def _nearest_neighbour_spacing(points: np.ndarray) -> float:
-    """The largest distance from a point to its nearest other point [m]."""
-    worst = 0.0
-    for start in range(0, len(points), CHUNK):
-        d = np.linalg.norm(points[start : start + CHUNK, None, :] - points[None], axis=2)
-        d[np.arange(d.shape[0]), np.arange(start, start + d.shape[0])] = np.inf
-        worst = max(worst, float(d.min(axis=1).max()))
-    return worst
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    nearest = np.argmin(((points[:, None, :] - grid.points_m[None]) ** 2).sum(-1), axis=1)
+    out = np.empty((len(points), grid.poses[0].q_all.size))
+    for i, k in enumerate(nearest):
+        pose = grid.poses[k]
+        out[i] = pose.q_all
+        if pose.tangent is not None:
+            out[i] += pose.tangent @ (points[i] - pose.p_m)
+    return out

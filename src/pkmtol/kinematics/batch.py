@@ -66,6 +66,7 @@ class Solutions:
         system_inverse: Shape (B, free, rows): its inverse (pseudo-inverse if over-determined).
         errors: Per problem, None or the :class:`KinematicsError` the per-pose solver raises.
         limb_offsets: Where each limb's joints start in ``q`` (len(limbs) + 1 entries).
+        task: Whether these are inverse problems (their last three rows are the task of P).
     """
 
     q: np.ndarray
@@ -79,6 +80,7 @@ class Solutions:
     system_inverse: np.ndarray
     errors: tuple[KinematicsError | None, ...]
     limb_offsets: tuple[int, ...]
+    task: bool = False
 
     def __len__(self) -> int:
         return len(self.errors)
@@ -103,6 +105,7 @@ class Solutions:
             system_inverse=self.system_inverse[index],
             errors=tuple(self.errors[int(k)] for k in index),
             limb_offsets=self.limb_offsets,
+            task=self.task,
         )
 
     @staticmethod
@@ -120,6 +123,7 @@ class Solutions:
             system_inverse=np.concatenate([p.system_inverse for p in parts]),
             errors=tuple(e for p in parts for e in p.errors),
             limb_offsets=parts[0].limb_offsets,
+            task=parts[0].task,
         )
 
     def first_error(self) -> KinematicsError | None:
@@ -138,6 +142,7 @@ class Solutions:
             p_m=self.p_m[k].copy(),
             residual=float(self.residual[k]),
             condition=float(self.condition[k]),
+            tangent=self.system_inverse[k][:, -3:].copy() if self.task else None,
         )
 
 
@@ -456,6 +461,7 @@ class BatchChain:
             system_inverse=inverse,
             errors=tuple(errors),
             limb_offsets=tuple(int(o) for o in self.offsets),
+            task=targets is not None,
         )
 
     def _placement0(

@@ -47,7 +47,10 @@ class Pose:
         oMp: Platform placement in K (limb 0's platform frame), ``pin.SE3``.
         p_m: Position of the reference point P in K, shape (3,) [m].
         residual: Norm of the closure (and task) residual at the solution [m, rad].
-        condition: Condition number of the closure(+task) Jacobian at the solution.
+        condition: Condition number of the closure(+task) Jacobian at the solution (the batched
+            solver stores its upper bound ``‖A‖_F ‖A⁻¹‖_F``, docs/theory.md).
+        tangent: Shape (Σ nq_i, 3): ``∂q/∂P`` at an inverse solution (the task columns of the
+            inverse Jacobian), for a first-order guess at a nearby target; None if not known.
     """
 
     q: tuple[np.ndarray, ...]
@@ -55,6 +58,7 @@ class Pose:
     p_m: np.ndarray
     residual: float
     condition: float
+    tangent: np.ndarray | None = None
 
     @property
     def q_all(self) -> np.ndarray:
