@@ -33,7 +33,7 @@ from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify_all
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.sweep import Sweep, guesses_near, sweep
 from pkmtol.exceptions import InvalidRequestError, NoiseFloorError
 from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
@@ -262,7 +262,7 @@ def _allocation_sensitivity(
     zero = omega <= 1e-12 * top
     anywhere = per_pose.max(axis=0) > 1e-12 * top
     for j in np.flatnonzero(zero & anywhere):
-        fallback[j] = int(np.argmax(per_pose[:, j]))
+        fallback[j] = first_max(per_pose[:, j])
         omega[j] = per_pose[fallback[j], j]
     return omega, fallback
 
@@ -373,9 +373,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
 
     t0 = time.perf_counter()
     points = mechanism.task_space.sample(rng, min(opt.verification_poses, opt.samples))
-    nearest = np.argmin(((points[:, None, :] - grid.points_m[None]) ** 2).sum(-1), axis=1)
-    guesses = np.array([grid.poses[k].q_all for k in nearest])
-    rnd = sweep(mechanism, pset, points, chain, guesses=guesses, progress=opt.progress)
+    rnd = sweep(mechanism, pset, points, chain, guesses=guesses_near(grid, points), progress=opt.progress)
     rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m)
     timings["verification poses"] = time.perf_counter() - t0
 
