@@ -232,9 +232,12 @@ def cost_optimal(
     # make the result feasible to round-off: shrink uniformly if a constraint is still violated
     r = r_all(x)
     if r.min() < r_star:
+        # shrinking every tolerance raises R at every pose: only the violated poses can bind
+        bad = np.flatnonzero(r < r_star)
+        Jb, Eb = J[bad], None if extra_cov is None else extra_cov[bad]
 
         def gap(d: float) -> float:
-            return float(r_all(np.clip(x - d, lo, hi)).min() - r_star)
+            return float(_rel(Jb, np.exp(np.clip(x - d, lo, hi)), target_m, Eb).min() - r_star)
 
         d = optimize.brentq(gap, 0.0, 5.0, xtol=1e-13)
         x = np.clip(x - d, lo, hi)

@@ -128,6 +128,13 @@ def scale_design(
             raise InvalidRequestError("the design reaches the target at any scale: Δλ does not depend on it")
     from scipy import optimize  # only the exact and cost designs find roots; keep it out of start-up
 
+    if criterion == "every" and len(Jsel) > 1:
+        # R at each pose falls as the scale grows: a pose above R* at the top of the bracket stays
+        # above it in the whole bracket and cannot be the minimum at the root; keep the others
+        r_hi = grid_reliability(Jsel, base * math.exp(hi), target_m, Esel)
+        keep = np.flatnonzero(r_hi <= r_star)
+        Jsel = Jsel[keep]
+        Esel = None if Esel is None else Esel[keep]
     log_s = optimize.brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12)
     s = math.exp(log_s)
     sigma = np.where(finite, shape * s, np.inf)
