@@ -93,7 +93,7 @@ def job():
 def run_job(job, executor):
     mech, pset, grid, rnd, unc, sigma = job
     rng = np.random.default_rng(5)
-    ver = verify_all(mech, pset, rnd, unc, sigma, 5e-5, 800, 450, rng, executor=executor)
+    ver = verify_all(mech, pset, rnd, unc, sigma, 5e-5, 1500, 1100, rng, executor=executor)
     claims = claimed_vs_true(
         grid.J[0][:, unc],
         rnd.J[:, :, unc],
@@ -119,7 +119,7 @@ def assert_same(a, b):
 def test_verification_is_bit_identical_on_every_executor(job):
     serial = run_job(job, None)
     ver = serial[0]
-    assert all(v.exact is not None and v.exact.samples == 450 for v in ver.values())  # 3 chunks each
+    assert all(v.exact is not None and v.exact.samples == 1100 for v in ver.values())  # 3 chunks each
     assert max(v.max_relative_difference for v in ver.values()) < 0.01  # exact agrees with linear
     assert_same(serial, run_job(job, Executor(workers=2)))
     pytest.importorskip("dask.distributed")

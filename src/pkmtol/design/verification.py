@@ -41,7 +41,7 @@ DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
 #: Linear-model samples drawn and evaluated at a time.
 LINEAR_CHUNK = 65_536
 #: Exact-kinematics samples per chunk of work (one batched forward solve).
-EXACT_CHUNK = 200
+EXACT_CHUNK = 500
 
 
 def sample_errors(distribution: str, sigma: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -305,7 +305,8 @@ class _ExactTask:
         pset: Its parameter set.
         q0: Shape (c, N): nominal joint values of each sample's pose (the initial guess).
         commands: Shape (c, f): actuator commands, nominal plus the Eq. 25 correction.
-        eta: Shape (c, n): every parameter's error (zero outside the toleranced columns).
+        columns: Indices of the toleranced parameters (the others are zero).
+        eta: Shape (c, len(columns)): their errors.
         p_nominal_m: Shape (c, 3): nominal position of P [m].
         skip: Shape (c,): samples whose linear model already says they cannot be assembled.
     """
@@ -314,6 +315,7 @@ class _ExactTask:
     pset: ParameterSet
     q0: np.ndarray
     commands: np.ndarray
+    columns: np.ndarray
     eta: np.ndarray
     p_nominal_m: np.ndarray
     skip: np.ndarray
@@ -345,7 +347,10 @@ def _exact_task(
         q0.append(q)
         commands.append(q[_actuated(mechanism)] + sep.correction @ full[s])
         p_nom.append(pose.p_m)
-    return _ExactTask(mechanism, pset, np.array(q0), np.array(commands), full, np.array(p_nom), skip)
+    cols = np.asarray(columns, dtype=int)
+    return _ExactTask(
+        mechanism, pset, np.array(q0), np.array(commands), cols, eta_cols, np.array(p_nom), skip
+    )
 
 
 def _actuated(mechanism: Mechanism) -> np.ndarray:
@@ -373,7 +378,9 @@ def _exact_chunk(task: _ExactTask) -> tuple[np.ndarray, KinematicsError | None]:
     run = np.flatnonzero(~task.skip)
     if not run.size:
         return out, None
-    eps, offsets = task.pset.perturbations(task.eta[run], task.mechanism)
+    full = np.zeros((run.size, len(task.pset)))
+    full[:, task.columns] = task.eta[run]
+    eps, offsets = task.pset.perturbations(full, task.mechanism)
     sols = _batch_for(task.mechanism).forward(task.commands[run], task.q0[run], offsets, eps)
     for pos, s in enumerate(run):
         err = sols.errors[pos]
