@@ -87,7 +87,7 @@ def parse_angle(value: str | float | int, what: str = "angle") -> float:
     >>> parse_angle("0.5 mrad")
     0.0005
     >>> round(parse_angle("1 deg"), 12)
-    0.017453292520
+    0.01745329252
     """
     if isinstance(value, bool) or isinstance(value, int | float):
         raise InvalidRequestError(

@@ -33,16 +33,20 @@ def design_sigma(
 ) -> np.ndarray:
     """σ of every parameter of a drawn machine (n,) [m or rad].
 
-    Compensatable: the manufacturing σ. Uncompensatable: ``tolerances`` (the allocated design-β
-    σ; a free ``inf`` is drawn as 0). Absorbed: 0 (they do not move the platform).
+    A parameter with a finite entry in ``tolerances`` (an allocated design: the ideal mode's
+    uncompensatable errors, or whatever a calibrated-mode design tolerances) is drawn at it; the
+    other compensatable errors at the manufacturing σ; an uncompensatable error without a tolerance
+    at 0 (not allocated: no effect anywhere); absorbed errors at 0 (they do not move the platform).
     """
     sigma = settings.manufacturing_sigma(pset)
     tol = np.full(len(pset), np.nan) if tolerances is None else np.asarray(tolerances, dtype=float)
     for i, c in enumerate(classes):
         if c == "absorbed":
             sigma[i] = 0.0
+        elif np.isfinite(tol[i]):
+            sigma[i] = tol[i]
         elif c == "uncompensatable":
-            sigma[i] = tol[i] if np.isfinite(tol[i]) else 0.0
+            sigma[i] = 0.0
     return sigma
 
 

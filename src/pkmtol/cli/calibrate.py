@@ -11,6 +11,7 @@ import numpy as np
 
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
+from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
@@ -89,11 +90,21 @@ def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: in
                 f"give --set {kind}"
             )
         tol = np.full(len(pset), np.nan)
+        design = doc.get("method_design") or {}
+        chosen = dict(zip(design.get("parameters", []), design.get("tolerance", []), strict=False))
+        manufacturing = CalibrationSettings().manufacturing_sigma(pset)
+        classes_in_mode = {p["name"]: p.get("class_in_mode") for p in doc["parameters"]}
         for i, name in enumerate(pset.names):
-            t = by_name.get(name)
-            if t is not None and t[col] is not None:
-                tol[i] = float(t[col])
-        return tol, f"tolerances from {path}"
+            t = chosen.get(name, None) if chosen else None
+            if t is None:
+                row = by_name.get(name)
+                t = None if row is None else row[col]
+            if t is not None:
+                tol[i] = float(t)
+            elif classes_in_mode.get(name) == "identified":
+                tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
+        what = f"'{design['method']}' design" if design else "FOSM design-β tolerances"
+        return tol, f"{what} of {path}"
     res = allocate(
         mech,
         DesignOptions(

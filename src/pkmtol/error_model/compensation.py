@@ -14,8 +14,8 @@ parameters ``δ`` (n) and, for a real calibration, in the tracker noise ``ν`` (
 
 Each gives, at every evaluation pose ``k``, the position error of P, ``e_k = L_k δ + N_k ν`` [m],
 and the rotation of the platform, ``θ_k = Lr_k δ + Nr_k ν`` [rad] (a rotation vector in K). The
-tilt of a tool axis ``a`` (platform frame) is ``‖(R_k a) × θ_k‖``: rotation about the axis itself
-does not tilt it.
+tool axis ``a`` (platform frame) moves by ``θ_k × (R_k a)``; its norm is the tilt: rotation about
+the axis itself does not tilt it.
 """
 
 from __future__ import annotations
@@ -66,18 +66,19 @@ class AccuracyMaps:
     def tilt_maps(self, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The tilt of the tool axis ``axis`` (platform frame, unit vector): ``(map (m,3,n), noise (m,3,M))``.
 
-        Rows: ``[R_k a]× θ_k``, whose norm is the tilt angle [rad] to first order.
+        Rows: ``θ_k × (R_k a) = −[R_k a]× θ_k``, the displacement of the unit tool axis, whose norm
+        is the tilt angle [rad] to first order.
         """
         a = np.asarray(axis, dtype=float)
         a = a / np.linalg.norm(a)
         ak = np.einsum("kij,j->ki", self.rotations, a)
-        sk = skew_batch(ak)
+        sk = -skew_batch(ak)
         return np.einsum("kij,kjn->kin", sk, self.rotation), np.einsum(
             "kij,kjn->kin", sk, self.rotation_noise
         )
 
     def tilt_covariance(self, axis: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        """Covariance of the tilt vector ``[R_k a]× θ_k``: (m, 3, 3) [rad²] (rank 2)."""
+        """Covariance of the tool axis's displacement ``θ_k × (R_k a)``: (m, 3, 3) [rad²] (rank 2)."""
         t, tn = self.tilt_maps(axis)
         return _covariance(t, tn, sigma, self.noise_m)
 
