@@ -39,5 +39,9 @@ def add_executor_options(parser: argparse.ArgumentParser) -> None:
 
 
 def executor_from(args: argparse.Namespace) -> Executor:
-    """The :class:`Executor` of ``--workers``/``--dask`` (raises ExecutorError if they are bad)."""
-    return Executor(workers=args.workers, dask=args.dask)
+    """The :class:`Executor` of ``--workers``/``--dask``, its Dask scheduler reached already.
+
+    Raises:
+        ExecutorError: a bad worker count, or no scheduler at the ``--dask`` address.
+    """
+    return Executor(workers=args.workers, dask=args.dask).connect()
