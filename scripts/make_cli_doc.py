@@ -71,6 +71,12 @@ EXAMPLES = {
         "pkmtol show robots/r2rps_ups",
         "pkmtol show robots/r2rps_ups --html out/scene.html",
     ],
+    "sweep": [
+        "pkmtol sweep robots/r2rps_ups --vary 'reference_point.position_m[2]=0.1:0.5:5'",
+        "pkmtol sweep robots/r2rps_ups --vary 'limbs[limb1].dh.links[0][2]=0.45:0.55:3' "
+        "--vary 'task_space.radius_m=0.5:0.6:2' --workers 2",
+        "pkmtol sweep robots/r2rps_ups --vary 'design.design_beta=1:3:5' --dask tcp://scheduler:8786",
+    ],
 }
 
 

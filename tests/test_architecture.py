@@ -4,6 +4,9 @@ stages import only downward, modules small and each with a one-line docstring.""
 from __future__ import annotations
 
 import ast
+import importlib
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -13,7 +16,7 @@ PACKAGE = SRC / "pkmtol"
 #: The stages, bottom to top: a module may import its own stage and the ones below it.
 STAGES = ("model", "kinematics", "error_model", "calibration", "design", "present")
 #: Top-level modules every stage may use (they import nothing of the stages).
-FOUNDATION = ("exceptions", "units", "files", "statistics", "values")
+FOUNDATION = ("exceptions", "units", "files", "statistics", "values", "executor")
 MAX_LINES = 600
 
 
@@ -138,3 +141,22 @@ def test_module_is_small_and_says_what_it_holds(path):
     doc = ast.get_docstring(ast.parse(text))
     assert doc, f"{path.name} has no module docstring"
     assert len(doc.splitlines()[0]) > 20, f"{path.name}: the docstring's first line says too little"
+
+
+def test_the_package_face_imports_lazily_and_exports_what_it_lists():
+    import pkmtol
+
+    assert list(pkmtol.__all__) == sorted(pkmtol.__all__)
+    assert set(pkmtol.__all__) == set(pkmtol._EXPORTS)
+    for name in pkmtol.__all__:
+        value = getattr(pkmtol, name)
+        assert getattr(importlib.import_module(pkmtol._EXPORTS[name]), name) is value
+    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
+        pkmtol.nothing_here  # noqa: B018
+
+
+def test_import_pkmtol_loads_no_stage():
+    heavy = "('pkmtol.', 'numpy', 'scipy', 'pinocchio')"
+    code = f"import sys, pkmtol; print(sorted(m for m in sys.modules if m.startswith({heavy})))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

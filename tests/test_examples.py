@@ -8,7 +8,6 @@ import importlib.util
 import re
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,7 @@ import pinocchio as pin
 import pytest
 from process_checks import alive
 
-from pkmtol import ClosedChain, error_table, fosm_tolerances, load_mechanism
+from pkmtol import ClosedChain, load_mechanism
 from pkmtol.model.mechanism import check_home
 
 REPO = Path(__file__).resolve().parents[1]
@@ -81,32 +80,6 @@ def test_own_models_print_the_tolerance_table():
         tol = np.array([float(c.lstrip("±")) for c in r[4:]])
         expected = tol[1] / betas  # from the β = 1 column
         assert np.all(np.abs(tol - expected) <= 5e-5 * (1 + 1 / betas) + 1e-12), r
-
-
-# --- the wrist-offset sweep ---------------------------------------------------------------------
-
-
-def test_sweep_wrist_offset_table():
-    out = run("sweep_wrist_offset.py", "--l", "0.1", "0.3", "0.5", "--reference", "0.3")
-    summary = table_body(out, "l [mm]")
-    assert [r[0] for r in summary] == ["100", "300", "500"]
-    # the unit-error σ[Δλ] at the worst point changes with l (seed robot: 0.6529 at l = 0.1 m,
-    # 0.5407 m per unit at 0.3 m)
-    assert float(summary[0][2]) > float(summary[1][2]) > 0
-    assert summary[2][:2] == ["500", "task space unreachable"] and "limb1_p3" in summary[2][2]
-    # the l = 0.3 m column is the seed robot's own design at β = 2
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        table = error_table(load_mechanism(SEED), "dh")
-    unc = [i for i, c in enumerate(table.classes) if c == "uncompensatable"]
-    expected = fosm_tolerances(table.sensitivity[unc], 5e-5, np.array([2.0]))[:, 0] * 1e3
-    rows = table_body(out, "No.")
-    assert [r[1] for r in rows] == [table.pset.names[i] for i in unc]
-    printed = np.array([float(r[4].lstrip("±")) for r in rows])
-    np.testing.assert_allclose(printed, expected, rtol=0, atol=5e-5)
-    assert all(r[5] == "-" for r in rows)
-    p = table.worst_point_m * 1e3
-    assert summary[1][1] == f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f})"
 
 
 # --- Pinocchio's constrained dynamics on a toleranced machine ------------------------------------

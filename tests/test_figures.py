@@ -17,6 +17,7 @@ from pkmtol.present.figures import (  # noqa: E402
     FIGURES,
     HISTOGRAM_BINS,
     histogram_figure,
+    label_name,
     sensitivity_figure,
     tex_name,
     tolerance_figure,
@@ -49,7 +50,7 @@ def test_sensitivity_bars_one_per_uncompensatable_error(result):
     heights = np.array([b.get_height() for b in bars])
     np.testing.assert_allclose(heights, result.sensitivity[result.uncompensatable])
     labels = [t.get_text() for t in ax.get_xticklabels()]
-    assert labels == [tex_name(result.pset.names[i]) for i in result.uncompensatable]
+    assert labels == [label_name(result.pset.names[i]) for i in result.uncompensatable]
 
 
 def test_histogram_bins_line_and_failure_fraction(result):

@@ -174,3 +174,32 @@ def test_cost_overrides_are_checked(cost_design):
         cost_model(params, {"length": {"C": 2}})
     m = cost_model(params, {"parameters": {params[0].name: {"B": 7.0}}})
     assert m.B[0] == 7.0 and m.B[1] == 1.0
+
+
+def test_closed_form_chi3_cdf_agrees_with_gammainc():
+    from scipy import special
+
+    from pkmtol.design.reliability import chi3_cdf_half_square
+
+    x = np.concatenate([[0.0], np.logspace(-12, np.log10(300.0), 20_000)])
+    closed = chi3_cdf_half_square(x)
+    np.testing.assert_allclose(closed, special.gammainc(1.5, x), rtol=0, atol=5e-15)
+    assert closed[0] == 0.0 and closed[-1] == 1.0
+
+
+def test_stacked_reliability_matches_pose_by_pose():
+    from pkmtol.design.reliability import exact_reliability_many
+
+    rng = np.random.default_rng(4)
+    a = rng.standard_normal((30, 3, 14)) * 1e-5
+    a[3] = 0.0  # a pose without variance: R = 1, zero gradient
+    a[4, :, 5:] = 0.0
+    a[4, 2] = 0.0  # rank-deficient covariance
+    cov = a @ np.swapaxes(a, 1, 2)
+    r, g = exact_reliability_many(cov, TARGET, gradient=True)
+    for k, c in enumerate(cov):
+        rk, gk = exact_reliability(c, TARGET, gradient=True)
+        assert r[k] == pytest.approx(rk, abs=1e-15)
+        np.testing.assert_allclose(g[k], gk, rtol=1e-12, atol=1e-12 * np.abs(gk).max(initial=1.0))
+    assert r[3] == 1.0 and not g[3].any()
+    assert exact_reliability_many(cov, TARGET)[1] is None

@@ -9,66 +9,151 @@ twists), :mod:`~pkmtol.separation` (wrenches, compensatable/uncompensatable spli
 main job), :mod:`~pkmtol.report` (tables and files). Everything is SI (m, rad); frames are named
 in every docstring (K: base, K': platform point with base axes).
 
+Importing the package is cheap: a name of :data:`__all__` imports its module on first use
+(PEP 562), so ``pkmtol check`` never loads what only ``allocate`` needs.
+
 >>> import pkmtol
 >>> mech = pkmtol.load_mechanism("robots/r2rps_ups")   # doctest: +SKIP
 >>> result = pkmtol.allocate(mech)                       # doctest: +SKIP
 """
 
-from pkmtol.design.fosm import fosm_tolerances
-from pkmtol.design.job import DesignOptions, DesignResult, Traditional, allocate
-from pkmtol.design.methods import MethodDesign, method_design_for
-from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
-from pkmtol.design.reliability import exact_reliability, reliability_fosm
-from pkmtol.design.verification import FailureStats, Verification, verify
-from pkmtol.error_model.accuracy import norm_moments, sensitivities
-from pkmtol.error_model.parameters import ErrorParameter, ParameterSet, default_set, parameter_set
-from pkmtol.error_model.separation import Separation, separate
-from pkmtol.error_model.sweep import Sweep, sweep
-from pkmtol.error_model.table import ErrorTable, error_table
-from pkmtol.exceptions import (
-    ClosedLoopError,
-    ClosureFrameError,
-    ConvergenceError,
-    DHMismatchError,
-    InvalidArgumentError,
-    InvalidRequestError,
-    JointLimitError,
-    KinematicsError,
-    LostElementError,
-    MechanismFormatError,
-    MissingMeshWarning,
-    MJCFError,
-    MobilityError,
-    MultiDofJointError,
-    NoLoopError,
-    OutputError,
-    OutputLockedError,
-    PkmtolError,
-    PkmtolWarning,
-    PlatformMismatchError,
-    PointLoopError,
-    ResourceLimitError,
-    RobotCheckError,
-    SingularPoseError,
-    TendonError,
-    UnknownJointError,
-    UnknownKeyError,
-    UnknownMotorError,
-    UnreachableTargetError,
-    UnsupportedEqualityError,
-    URDFError,
-)
-from pkmtol.kinematics.closed_chain import ClosedChain, Pose
-from pkmtol.kinematics.perturbation import perturbed_limb_models
-from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
-from pkmtol.model.constraints import ConstrainedModel, constraint_models
-from pkmtol.model.limb import Limb
-from pkmtol.model.loader import load_mechanism
-from pkmtol.model.mechanism import Mechanism
-from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
-from pkmtol.model.taskspace import TaskSpace
-from pkmtol.present.outputs import write_outputs
-from pkmtol.present.tables import summary_text, to_json
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the names as static tools see them; at run time they load on first use
+    from pkmtol.design.fosm import fosm_tolerances
+    from pkmtol.design.job import DesignOptions, DesignResult, Traditional, allocate
+    from pkmtol.design.methods import MethodDesign, method_design_for
+    from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
+    from pkmtol.design.reliability import exact_reliability, reliability_fosm
+    from pkmtol.design.verification import FailureStats, Verification, verify
+    from pkmtol.error_model.accuracy import norm_moments, sensitivities
+    from pkmtol.error_model.parameters import ErrorParameter, ParameterSet, default_set, parameter_set
+    from pkmtol.error_model.separation import Separation, separate
+    from pkmtol.error_model.sweep import Sweep, sweep
+    from pkmtol.error_model.table import ErrorTable, error_table
+    from pkmtol.exceptions import (
+        ClosedLoopError,
+        ClosureFrameError,
+        ConvergenceError,
+        DHMismatchError,
+        InvalidArgumentError,
+        InvalidRequestError,
+        JointLimitError,
+        KinematicsError,
+        LostElementError,
+        MechanismFormatError,
+        MissingMeshWarning,
+        MJCFError,
+        MobilityError,
+        MultiDofJointError,
+        NoLoopError,
+        OutputError,
+        OutputLockedError,
+        PkmtolError,
+        PkmtolWarning,
+        PlatformMismatchError,
+        PointLoopError,
+        ResourceLimitError,
+        RobotCheckError,
+        SingularPoseError,
+        TendonError,
+        UnknownJointError,
+        UnknownKeyError,
+        UnknownMotorError,
+        UnreachableTargetError,
+        UnsupportedEqualityError,
+        URDFError,
+    )
+    from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+    from pkmtol.kinematics.perturbation import perturbed_limb_models
+    from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
+    from pkmtol.model.constraints import ConstrainedModel, constraint_models
+    from pkmtol.model.limb import Limb
+    from pkmtol.model.loader import load_mechanism
+    from pkmtol.model.mechanism import Mechanism
+    from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
+    from pkmtol.model.taskspace import TaskSpace
+    from pkmtol.present.outputs import write_outputs
+    from pkmtol.present.tables import summary_text, to_json
+
+_EXPORTS = {
+    "ClosedChain": "pkmtol.kinematics.closed_chain",
+    "ClosedLoopError": "pkmtol.exceptions",
+    "ClosureFrameError": "pkmtol.exceptions",
+    "ConstrainedModel": "pkmtol.model.constraints",
+    "ConvergenceError": "pkmtol.exceptions",
+    "DHMismatchError": "pkmtol.exceptions",
+    "DesignOptions": "pkmtol.design.job",
+    "DesignResult": "pkmtol.design.job",
+    "ErrorParameter": "pkmtol.error_model.parameters",
+    "ErrorTable": "pkmtol.error_model.table",
+    "FailureStats": "pkmtol.design.verification",
+    "InvalidArgumentError": "pkmtol.exceptions",
+    "InvalidRequestError": "pkmtol.exceptions",
+    "JointLimitError": "pkmtol.exceptions",
+    "KinematicsError": "pkmtol.exceptions",
+    "Limb": "pkmtol.model.limb",
+    "LostElementError": "pkmtol.exceptions",
+    "MJCFError": "pkmtol.exceptions",
+    "Mechanism": "pkmtol.model.mechanism",
+    "MechanismFormatError": "pkmtol.exceptions",
+    "MethodDesign": "pkmtol.design.methods",
+    "MissingMeshWarning": "pkmtol.exceptions",
+    "MobilityError": "pkmtol.exceptions",
+    "MultiDofJointError": "pkmtol.exceptions",
+    "NoLoopError": "pkmtol.exceptions",
+    "OutputError": "pkmtol.exceptions",
+    "OutputLockedError": "pkmtol.exceptions",
+    "ParameterSet": "pkmtol.error_model.parameters",
+    "PkmtolError": "pkmtol.exceptions",
+    "PkmtolWarning": "pkmtol.exceptions",
+    "PlatformMismatchError": "pkmtol.exceptions",
+    "PointLoopError": "pkmtol.exceptions",
+    "Pose": "pkmtol.kinematics.closed_chain",
+    "PoseSearch": "pkmtol.design.pose_search",
+    "ResourceLimitError": "pkmtol.exceptions",
+    "RobotCheckError": "pkmtol.exceptions",
+    "Separation": "pkmtol.error_model.separation",
+    "SingularPoseError": "pkmtol.exceptions",
+    "Sweep": "pkmtol.error_model.sweep",
+    "TaskSpace": "pkmtol.model.taskspace",
+    "TendonError": "pkmtol.exceptions",
+    "Traditional": "pkmtol.design.job",
+    "URDFError": "pkmtol.exceptions",
+    "UnknownJointError": "pkmtol.exceptions",
+    "UnknownKeyError": "pkmtol.exceptions",
+    "UnknownMotorError": "pkmtol.exceptions",
+    "UnreachableTargetError": "pkmtol.exceptions",
+    "UnsupportedEqualityError": "pkmtol.exceptions",
+    "Verification": "pkmtol.design.verification",
+    "allocate": "pkmtol.design.job",
+    "closed_loop_limbs": "pkmtol.model.closed_loop",
+    "constraint_models": "pkmtol.model.constraints",
+    "default_set": "pkmtol.error_model.parameters",
+    "error_table": "pkmtol.error_model.table",
+    "exact_reliability": "pkmtol.design.reliability",
+    "fosm_tolerances": "pkmtol.design.fosm",
+    "load_closed_loop": "pkmtol.model.closed_loop",
+    "load_mechanism": "pkmtol.model.loader",
+    "load_mjcf": "pkmtol.model.mjcf",
+    "method_design_for": "pkmtol.design.methods",
+    "mjcf_limbs": "pkmtol.model.mjcf",
+    "norm_moments": "pkmtol.error_model.accuracy",
+    "parameter_set": "pkmtol.error_model.parameters",
+    "perturbed_limb_models": "pkmtol.kinematics.perturbation",
+    "reliability_fosm": "pkmtol.design.reliability",
+    "search_sensitive_pose": "pkmtol.design.pose_search",
+    "sensitivities": "pkmtol.error_model.accuracy",
+    "separate": "pkmtol.error_model.separation",
+    "summary_text": "pkmtol.present.tables",
+    "sweep": "pkmtol.error_model.sweep",
+    "to_json": "pkmtol.present.tables",
+    "verify": "pkmtol.design.verification",
+    "write_outputs": "pkmtol.present.outputs",
+}
 
 __all__ = [
     "ClosedChain",
@@ -146,3 +231,17 @@ __all__ = [
     "write_outputs",
 ]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> Any:
+    """Import the module of a public name on first use and keep the name here."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pkmtol' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

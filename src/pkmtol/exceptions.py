@@ -14,7 +14,22 @@ import numpy as np
 
 
 class PkmtolError(Exception):
-    """Base class of every error raised by pkmtol on bad input or an impossible request."""
+    """Base class of every error raised by pkmtol on bad input or an impossible request.
+
+    Errors pickle with their message and attributes (a worker process or a Dask worker can raise
+    them back to the caller), although their constructors take other arguments than the message.
+    """
+
+    def __reduce__(self) -> tuple:
+        return (_rebuild, (type(self), self.args, self.__dict__))
+
+
+def _rebuild(cls: type[PkmtolError], args: tuple, state: dict) -> PkmtolError:
+    """An error of class ``cls`` with message ``args`` and attributes ``state``, without its constructor."""
+    err = cls.__new__(cls)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
 
 
 # --- mechanism description -------------------------------------------------------------
@@ -484,6 +499,33 @@ class MissingMeshWarning(PkmtolWarning):
             f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
             "(results are not affected); fix the filename or put the mesh next to the URDF"
         )
+
+
+# --- execution and studies ------------------------------------------------------------------------
+
+
+class ExecutorError(PkmtolError):
+    """The executor cannot run: a bad worker count, Dask missing, or no scheduler at the address.
+
+    Attributes:
+        culprit: The offending setting (``workers``, ``dask``, ``n_chunks``).
+    """
+
+    def __init__(self, culprit: str, problem: str) -> None:
+        self.culprit = culprit
+        super().__init__(f"{culprit}: {problem}")
+
+
+class SweepSpecError(PkmtolError):
+    """A ``--vary KEY=START:STOP:N`` specification of ``pkmtol sweep`` cannot be used.
+
+    Attributes:
+        spec: The specification as given.
+    """
+
+    def __init__(self, spec: str, problem: str) -> None:
+        self.spec = spec
+        super().__init__(f"--vary {spec!r}: {problem}")
 
 
 # --- calibration ------------------------------------------------------------------------------

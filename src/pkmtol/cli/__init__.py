@@ -20,12 +20,12 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from pkmtol import __version__
-from pkmtol.cli import allocate, calibrate, check, errors, new, show
+from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
 from pkmtol.cli.common import EXIT_ERROR
 from pkmtol.exceptions import PkmtolError, PkmtolWarning
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
-SUBCOMMANDS = (check, errors, allocate, calibrate, show, new)
+SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep, new)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -7,7 +7,14 @@ import sys
 from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
-from pkmtol.cli.common import OPTION_OF_FIELD, named_as_options, show_progress, target_option
+from pkmtol.cli.common import (
+    OPTION_OF_FIELD,
+    add_executor_options,
+    executor_from,
+    named_as_options,
+    show_progress,
+    target_option,
+)
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
@@ -126,6 +133,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not write the PNG/SVG figures (without matplotlib they are left out with a warning)",
     )
+    add_executor_options(p)
     p.set_defaults(run=_run)
 
 
@@ -175,6 +183,7 @@ def _run(args: argparse.Namespace) -> int:
             method=args.method,
             criterion=args.criterion or "every",
             progress=show_progress(args.no_progress),
+            executor=executor_from(args),
             compensation=args.compensation,
             calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
             orientation_target_rad=orientation,

@@ -1,7 +1,8 @@
-"""What every subcommand shares: exit codes, how numbers are printed, and checks of option values."""
+"""What every subcommand shares: exit codes, number formats, checks of option values, the executor."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import sys
 from collections.abc import Iterator, Mapping
@@ -9,6 +10,7 @@ from collections.abc import Iterator, Mapping
 import numpy as np
 
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
+from pkmtol.executor import Executor
 from pkmtol.units import parse_length
 
 #: Exit code of a pkmtol error (bad input or an impossible request).
@@ -66,3 +68,31 @@ def target_option(text: str | None) -> float | None:
 def show_progress(no_progress: bool) -> bool:
     """Progress bars on stderr: when it is a terminal and ``--no-progress`` is not given."""
     return not no_progress and sys.stderr.isatty()
+
+
+def add_executor_options(parser: argparse.ArgumentParser) -> None:
+    """``--workers N`` and ``--dask ADDRESS``: where the parallel loops run (docs/scale.md)."""
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="local worker processes for the parallel loops (default 1: serial; the numbers do not "
+        "depend on it); with --dask local, the number of Dask workers",
+    )
+    parser.add_argument(
+        "--dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run the parallel loops on a Dask scheduler (tcp://host:8786), or 'local' to start a "
+        "LocalCluster; needs pip install 'pkmtol[dask]'",
+    )
+
+
+def executor_from(args: argparse.Namespace) -> Executor:
+    """The :class:`Executor` of ``--workers``/``--dask``, its Dask scheduler reached already.
+
+    Raises:
+        ExecutorError: a bad worker count, or no scheduler at the ``--dask`` address.
+    """
+    return Executor(workers=args.workers, dask=args.dask).connect()

@@ -8,7 +8,8 @@ The design minimises ``Σ C_i`` subject to the exact Gaussian reliability
 Optimisation: SLSQP over ``x = log σ`` with analytic gradients — ``∂C/∂x_i = −k_i B_i t_i^{−k_i}``
 and ``∂R_j/∂x_i = 2 σ_i² J_{j,i}ᵀ (∂R_j/∂Σ) J_{j,i}`` from :func:`exact_reliability` — on an active
 set of poses grown by cutting planes: solve with the poses that bind, check all poses, add the
-violated ones, repeat.
+violated ones, repeat. The reliabilities of all poses (and the gradients of the active ones) are
+evaluated together by :func:`pkmtol.design.reliability.exact_reliability_many`.
 
 Defaults (overridable in ``mechanism.toml``, ``[cost.length]``, ``[cost.angle]`` and
 ``[cost.parameters."<name>"]``): ``A = 0``, ``B = 1``, ``k = 1``; lengths 0.001–1 mm, angles
@@ -22,9 +23,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import optimize
 
-from pkmtol.design.reliability import exact_reliability
+from pkmtol.design.reliability import exact_reliability_many
 from pkmtol.error_model.parameters import ErrorParameter
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.units import display
@@ -126,16 +126,27 @@ class CostDesign:
     iterations: int
 
 
+def _cov(J: np.ndarray, sigma: np.ndarray, extra: np.ndarray | None) -> np.ndarray:
+    """``J diag(σ²) Jᵀ`` (m, 3, 3), plus the fixed covariance ``extra`` (m, 3, 3) if any."""
+    a = J * sigma[None, None, :]
+    cov = a @ np.swapaxes(a, 1, 2)
+    return cov if extra is None else cov + extra
+
+
 def _rel_and_grad(
     J: np.ndarray, sigma: np.ndarray, target_m: float, extra: np.ndarray | None = None
-) -> tuple[float, np.ndarray]:
-    a = J * sigma[None, :]
-    cov = a @ a.T if extra is None else a @ a.T + extra
-    r, g = exact_reliability(cov, target_m, gradient=True)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact R (m,) at poses ``J`` (m, 3, k) and ``∂R/∂(log σ)`` (m, k) (``extra``: fixed covariance)."""
+    r, g = exact_reliability_many(_cov(J, sigma, extra), target_m, gradient=True)
     assert g is not None
     # ∂R/∂x_i (x = log σ) = σ_i ∂R/∂σ_i = 2 σ_i² J_iᵀ G J_i
-    d = 2.0 * sigma**2 * np.einsum("ji,jk,ki->i", J, g, J)
+    d = 2.0 * sigma**2 * np.einsum("mji,mjk,mki->mi", J, g, J)
     return r, d
+
+
+def _rel(J: np.ndarray, sigma: np.ndarray, target_m: float, extra: np.ndarray | None = None) -> np.ndarray:
+    """Exact R (m,) at poses ``J`` (m, 3, k) for tolerances ``σ`` (k,) (``extra``: fixed covariance)."""
+    return exact_reliability_many(_cov(J, sigma, extra), target_m)[0]
 
 
 def cost_optimal(
@@ -165,9 +176,10 @@ def cost_optimal(
         InvalidRequestError: no tolerances within the process limits reach R* at every pose;
             the message names the parameters whose lower limits bind.
     """
+    from scipy import optimize  # SLSQP and a root finder: only the cost design needs them
+
     m, _, k = J.shape
-    E = [None] * m if extra_cov is None else list(extra_cov)
-    r_tight = np.array([_rel_and_grad(J[j], model.t_min_si, target_m, E[j])[0] for j in range(m)])
+    r_tight = _rel(J, model.t_min_si, target_m, extra_cov)
     if r_tight.min() < r_star:
         j = int(np.argmin(r_tight))
         contrib = np.linalg.norm(J[j], axis=0) * model.t_min_si
@@ -188,23 +200,19 @@ def cost_optimal(
         return float(np.sum(model.A + terms)) / c0, -model.k * terms / c0
 
     def r_all(x: np.ndarray) -> np.ndarray:
-        s = np.exp(x)
-        return np.array([_rel_and_grad(J[j], s, target_m, E[j])[0] for j in range(m)])
+        return _rel(J, np.exp(x), target_m, extra_cov)
 
     active = [int(np.argmin(r_all(x0)))]
     x = x0
     rounds = 0
     while rounds < max_rounds:
         rounds += 1
-        act = list(active)
+        Ja = J[list(active)]
+        Ea = None if extra_cov is None else extra_cov[list(active)]
         cons = {
             "type": "ineq",
-            "fun": lambda x, act=act: np.array(
-                [_rel_and_grad(J[j], np.exp(x), target_m, E[j])[0] - r_star for j in act]
-            ),
-            "jac": lambda x, act=act: np.array(
-                [_rel_and_grad(J[j], np.exp(x), target_m, E[j])[1] for j in act]
-            ),
+            "fun": lambda x, Ja=Ja, Ea=Ea: _rel(Ja, np.exp(x), target_m, Ea) - r_star,
+            "jac": lambda x, Ja=Ja, Ea=Ea: _rel_and_grad(Ja, np.exp(x), target_m, Ea)[1],
         }
         res = optimize.minimize(
             objective,
@@ -224,9 +232,12 @@ def cost_optimal(
     # make the result feasible to round-off: shrink uniformly if a constraint is still violated
     r = r_all(x)
     if r.min() < r_star:
+        # shrinking every tolerance raises R at every pose: only the violated poses can bind
+        bad = np.flatnonzero(r < r_star)
+        Jb, Eb = J[bad], None if extra_cov is None else extra_cov[bad]
 
         def gap(d: float) -> float:
-            return float(r_all(np.clip(x - d, lo, hi)).min() - r_star)
+            return float(_rel(Jb, np.exp(np.clip(x - d, lo, hi)), target_m, Eb).min() - r_star)
 
         d = optimize.brentq(gap, 0.0, 5.0, xtol=1e-13)
         x = np.clip(x - d, lo, hi)

@@ -5,6 +5,10 @@ FOSM treats ``Δλ = ‖J η_c‖`` as a normal variable; it is a norm. For Gaus
 ``Σ = J diag(σ²) Jᵀ``. :func:`scale_design` keeps the equal-effect *shape* ``σ_i ∝ 1/ω_i`` and
 scales it by root finding so that the exact R equals the target at the worst pose, at every grid
 pose (the minimum over the grid), or on average over the grid.
+
+:func:`claimed_vs_true` runs the exact reliabilities of each β on an executor (one chunk per β)
+and draws its Monte Carlo cells in the caller, in chunks of :data:`LINEAR_CHUNK` samples from the
+caller's generator, β by β and cell by cell as one draw per cell would.
 """
 
 from __future__ import annotations
@@ -13,11 +17,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import special
 
-from pkmtol.design.reliability import exact_reliability
-from pkmtol.design.verification import failure_stats, sample_errors
+from pkmtol.design.reliability import exact_reliability_many
+from pkmtol.design.verification import LINEAR_CHUNK, failure_counts, sample_errors
 from pkmtol.exceptions import InvalidRequestError
+from pkmtol.executor import Executor, map_chunks
 
 CRITERIA = ("worst", "every", "average")
 
@@ -34,7 +39,7 @@ def grid_reliability(
     cov = a @ np.swapaxes(a, 1, 2)
     if extra_cov is not None:
         cov = cov + extra_cov
-    return np.array([exact_reliability(c, target_m)[0] for c in cov])
+    return exact_reliability_many(cov, target_m)[0]
 
 
 def criterion_value(r: np.ndarray, criterion: str, worst_index: int) -> float:
@@ -121,7 +126,12 @@ def scale_design(
         hi += 2.0
         if hi > 60:
             raise InvalidRequestError("the design reaches the target at any scale: Δλ does not depend on it")
-    log_s = optimize.brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12)
+    from scipy import optimize  # only the exact and cost designs find roots; keep it out of start-up
+
+    if criterion == "every" and len(Jsel) > 1:
+        log_s = _every_root(Jsel, Esel, base, target_m, r_star, lo, hi)
+    else:
+        log_s = optimize.brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12)
     s = math.exp(log_s)
     sigma = np.where(finite, shape * s, np.inf)
     return ScaledDesign(
@@ -131,6 +141,41 @@ def scale_design(
         criterion=criterion,
         target_reliability=r_star,
     )
+
+
+def _every_root(
+    J: np.ndarray,
+    extra: np.ndarray | None,
+    base: np.ndarray,
+    target_m: float,
+    r_star: float,
+    lo: float,
+    hi: float,
+) -> float:
+    """The scale at which the minimum over the poses of R reaches R*, on a growing set of poses.
+
+    Every R_j falls as the scale grows, so the root over a subset of poses lies at or above the
+    root over all of them. Start from the poses least reliable at ``lo``; find the subset's root;
+    check every pose there; if one falls short, add the ones that do and search again below. At
+    the end the subset holds the pose that binds, and its root is the whole grid's (to brentq's
+    1e-12), in a few passes over the grid instead of one per root-finding step.
+    """
+    from scipy import optimize
+
+    def sub_excess(log_s: float, rows: np.ndarray) -> float:
+        Es = None if extra is None else extra[rows]
+        return float(grid_reliability(J[rows], base * math.exp(log_s), target_m, Es).min()) - r_star
+
+    r_lo = grid_reliability(J, base * math.exp(lo), target_m, extra)
+    rows = np.sort(np.argsort(r_lo)[:8])
+    while True:
+        root = optimize.brentq(sub_excess, lo, hi, args=(rows,), xtol=1e-12, rtol=1e-12)
+        r_all = grid_reliability(J, base * math.exp(root), target_m, extra)
+        short = np.setdiff1d(np.flatnonzero(r_all < r_star - 1e-12), rows)
+        if not short.size:
+            return root
+        rows = np.union1d(rows, short)
+        hi = root  # the whole grid's root lies below the subset's
 
 
 @dataclass(frozen=True)
@@ -179,6 +224,7 @@ def claimed_vs_true(
     rng: np.random.Generator,
     extra_cov_worst: np.ndarray | None = None,
     extra_cov_task: np.ndarray | None = None,
+    executor: Executor | None = None,
 ) -> list[ClaimRow]:
     """Claimed ``Φ(β)`` vs exact and Monte Carlo reliabilities of the FOSM designs.
 
@@ -193,33 +239,42 @@ def claimed_vs_true(
         rng: Random generator.
         extra_cov_worst: Fixed covariance (3, 3) at the worst pose [m²] (calibration noise).
         extra_cov_task: Fixed covariance (m, 3, 3) at the task-space poses [m²].
+        executor: Where the exact reliabilities run, one chunk per β (None: serial).
     """
-    rows = []
     m = J_task.shape[0]
     ew = None if extra_cov_worst is None else extra_cov_worst[None]
-    for b, sigma in zip(betas, tolerances.T, strict=True):
-        if np.any(np.isnan(sigma)):
-            continue
-        s = np.where(np.isfinite(sigma), sigma, 0.0)
-        r_task = grid_reliability(J_task, s, target_m, extra_cov_task)
+    noisy = extra_cov_worst is not None or extra_cov_task is not None
+    # with noise draws after each cell's errors, a cell is one chunk (the stream of one draw)
+    chunk = samples if noisy else LINEAR_CHUNK
+    kept = [(b, np.where(np.isfinite(sg), sg, 0.0)) for b, sg in zip(betas, tolerances.T, strict=True)]
+    kept = [(b, s) for b, s in kept if not np.any(np.isnan(s))]
+    tasks = [(J_worst, J_task, s, target_m, ew, extra_cov_task) for _, s in kept]
+    exact = map_chunks(_exact_cells, tasks, executor)
+    rows = []
+    for (b, s), (r_worst, r_task) in zip(kept, exact, strict=True):
         cells = []
         for dist in ("uniform_sigma", "uniform_sqrt3_sigma"):
-            eta = sample_errors(dist, s, samples, rng)
-            e_w = eta @ J_worst.T
-            idx = np.arange(samples) % m
-            e_t = np.einsum("sij,sj->si", J_task[idx], eta)
-            if extra_cov_worst is not None:
-                e_w = e_w + _noise_draws(extra_cov_worst, samples, rng)
-            if extra_cov_task is not None:
-                e_t = e_t + _noise_draws(extra_cov_task, samples, rng)
-            for dl in (np.linalg.norm(e_w, axis=1), np.linalg.norm(e_t, axis=1)):
-                f = failure_stats(dl, target_m)
+            fail_w = fail_t = 0
+            for start in range(0, samples, chunk):
+                count = min(chunk, samples - start)
+                eta = sample_errors(dist, s, count, rng)
+                e_w = eta @ J_worst.T
+                idx = np.arange(start, start + count) % m
+                e_t = np.einsum("sij,sj->si", J_task[idx], eta)
+                if extra_cov_worst is not None:
+                    e_w = e_w + _noise_draws(extra_cov_worst, count, rng)
+                if extra_cov_task is not None:
+                    e_t = e_t + _noise_draws(extra_cov_task, count, rng)
+                fail_w += int(np.sum(np.linalg.norm(e_w, axis=1) > target_m))
+                fail_t += int(np.sum(np.linalg.norm(e_t, axis=1) > target_m))
+            for fails in (fail_w, fail_t):
+                f = failure_counts(fails, samples)
                 cells.append((f.reliability, 1.0 - f.failure_ci95[1], 1.0 - f.failure_ci95[0]))
         rows.append(
             ClaimRow(
                 beta=b,
-                claimed=float(stats.norm.cdf(b)),
-                exact_worst=float(grid_reliability(J_worst[None], s, target_m, ew)[0]),
+                claimed=float(special.ndtr(b)),
+                exact_worst=r_worst,
                 exact_task_space=float(r_task.mean()),
                 exact_task_space_min=float(r_task.min()),
                 uniform_sigma_worst=cells[0],
@@ -229,3 +284,11 @@ def claimed_vs_true(
             )
         )
     return rows
+
+
+def _exact_cells(task: tuple) -> tuple[float, np.ndarray]:
+    """Exact reliability at the worst pose and at each task-space pose of one design (a chunk)."""
+    J_worst, J_task, s, target_m, ew, et = task
+    return float(grid_reliability(J_worst[None], s, target_m, ew)[0]), grid_reliability(
+        J_task, s, target_m, et
+    )

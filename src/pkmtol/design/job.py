@@ -31,12 +31,13 @@ from pkmtol.design.orientation import (
 )
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
 from pkmtol.design.reliability import reliability_fosm
-from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify
-from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
+from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify_all
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.sweep import Sweep, guesses_near, sweep
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, NoiseFloorError
+from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
@@ -75,6 +76,8 @@ class DesignOptions:
         orientation_target_rad: Δα*, the largest tilt of the tool axis [rad] (None: the
             mechanism's ``[design] orientation_target``, else no orientation target).
         tool_axis: The tool axis in the platform frame (None: ``[design] tool_axis``, else z).
+        executor: Where the exact verification (ideal mode) and the claimed-vs-true
+            reliabilities run (None: serial); the numbers do not depend on it.
     """
 
     target_m: float | None = None
@@ -93,6 +96,7 @@ class DesignOptions:
     calibration: CalibrationSettings | None = None
     orientation_target_rad: float | None = None
     tool_axis: tuple[float, float, float] | None = None
+    executor: Executor | None = None
 
     def __post_init__(self) -> None:
         """Check every field (raises InvalidArgumentError naming it); betas become a tuple."""
@@ -264,7 +268,7 @@ def _allocation_sensitivity(
     zero = omega <= 1e-12 * top
     anywhere = per_pose.max(axis=0) > 1e-12 * top
     for j in np.flatnonzero(zero & anywhere):
-        fallback[j] = int(np.argmax(per_pose[:, j]))
+        fallback[j] = first_max(per_pose[:, j])
         omega[j] = per_pose[fallback[j], j]
     return omega, fallback
 
@@ -311,7 +315,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         scale = settings.manufacturing_sigma(pset)
         unc0 = np.array([i for i, c in enumerate(classes) if c == "uncompensatable"], dtype=int)
         if unc0.size:
-            w0 = int(np.argmax(grid_norm_moments(grid.J[:, :, unc0])[:, 1]))
+            w0 = first_max(grid_norm_moments(grid.J[:, :, unc0])[:, 1])
             om0, _ = _allocation_sensitivity(grid.J, unc0, w0)
             t_ideal = fosm_tolerances(om0, target, np.array([design_beta]))[:, 0]
             scale[unc0] = np.where(np.isfinite(t_ideal), t_ideal, scale[unc0])
@@ -386,9 +390,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
 
     t0 = time.perf_counter()
     points = mechanism.task_space.sample(rng, min(opt.verification_poses, opt.samples))
-    nearest = np.argmin(((points[:, None, :] - grid.points_m[None]) ** 2).sum(-1), axis=1)
-    guesses = np.array([grid.poses[k].q_all for k in nearest])
-    rnd = sweep(mechanism, pset, points, chain, guesses=guesses, progress=opt.progress)
+    rnd = sweep(mechanism, pset, points, chain, guesses=guesses_near(grid, points), progress=opt.progress)
     rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m)
     timings["verification poses"] = time.perf_counter() - t0
 
@@ -405,6 +407,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         rng,
         None if noise_cov is None else noise_cov[worst],
         None if rnd_noise_cov is None else rnd_noise_cov[: opt.claim_poses],
+        executor=opt.executor,
     )
     timings["claimed vs true reliability"] = time.perf_counter() - t0
 
@@ -429,23 +432,22 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         timings[f"{opt.method} design"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ver = {}
-    for dist in DISTRIBUTIONS:
-        if mode == "ideal" and alpha_target is None:
-            ver[dist] = verify(
-                mechanism,
-                pset,
-                rnd,
-                unc,
-                verified,
-                target,
-                dist,
-                opt.samples,
-                opt.exact_samples,
-                rng,
-                progress=opt.progress,
-            )
-            continue
+    ver: dict[str, Verification] = {}
+    if mode == "ideal" and alpha_target is None:  # the exact chunks of all distributions at once
+        ver = verify_all(
+            mechanism,
+            pset,
+            rnd,
+            unc,
+            verified,
+            target,
+            opt.samples,
+            opt.exact_samples,
+            rng,
+            progress=opt.progress,
+            executor=opt.executor,
+        )
+    for dist in () if ver else DISTRIBUTIONS:  # the other modes: one distribution at a time
         exact, n_exact = None, opt.exact_samples
         if mode == "calibrated":
             assert setup.plan is not None
@@ -480,7 +482,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     t0 = time.perf_counter()
     trad_cols = np.array([i for i, c in enumerate(classes) if c != "absorbed"], dtype=int)
     trad_sigma = grid_norm_moments(grid.J_total[:, :, trad_cols])[:, 1]
-    trad_worst = int(np.argmax(trad_sigma))
+    trad_worst = first_max(trad_sigma)
     # evaluated at the same design point as the new method, so the comparison isolates what
     # compensation buys; the traditional model's own most sensitive point is reported beside it
     trad_sens = sensitivities(grid.J_total[worst][:, trad_cols])

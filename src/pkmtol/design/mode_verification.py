@@ -168,7 +168,7 @@ def verify_mode(
         linear_subsample=lin_sub,
         max_relative_difference=max_diff,
         dlam_linear_m=dlam,
-        points_m=points_m[point_of],
+        pose_points_m=points_m,
         exact_unassembled=unassembled,
         tilt_linear_rad=tilt,
         tilt=tilt_stats,

@@ -20,7 +20,7 @@ from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.plan import CalibrationPlan, candidate_pool, make_plan
 from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
-from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps, mode_maps
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep, sweep
@@ -143,7 +143,7 @@ def mode_error_table(
     setup = mode_setup(mechanism, pset, grid, classes, mode, chain, settings)
     cols = setup.columns
     maps = setup.grid_maps
-    worst = int(np.argmax(grid_norm_moments(maps.position[:, :, cols])[:, 1])) if cols.size else 0
+    worst = first_max(grid_norm_moments(maps.position[:, :, cols])[:, 1]) if cols.size else 0
     sens = np.zeros(len(pset))
     sens[cols] = sensitivities(maps.position[worst][:, cols])
     return ErrorTable(

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pkmtol.error_model.accuracy import grid_norm_moments, norm_moments, sensitivities
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, norm_moments, sensitivities
 from pkmtol.error_model.compensation import AccuracyMaps
 
 #: Standard-normal draws behind the joint reliability (fixed: common random numbers).
@@ -60,7 +60,7 @@ class OrientationDesign:
 def tilt_worst_pose(maps: AccuracyMaps, columns: np.ndarray, axis: np.ndarray) -> int:
     """Grid index of the largest σ[Δα] for unit errors of ``columns``."""
     tilt, _ = maps.tilt_maps(axis)
-    return int(np.argmax(grid_norm_moments(tilt[:, :, columns])[:, 1]))
+    return first_max(grid_norm_moments(tilt[:, :, columns])[:, 1])
 
 
 def tilt_sensitivities(maps: AccuracyMaps, columns: np.ndarray, axis: np.ndarray, index: int) -> np.ndarray:

@@ -1,4 +1,9 @@
-"""The most error-sensitive pose (paper §4.3): Monte Carlo σ[Δλ] over the grid beside the analytic one."""
+"""The most error-sensitive pose (paper §4.3): Monte Carlo σ[Δλ] over the grid beside the analytic one.
+
+Samples beyond :data:`SEARCH_CHUNK` are drawn and evaluated a chunk at a time (the same random
+stream as one draw) and their standard deviations merged (Chan et al.'s pairwise update), so the
+working memory stays bounded at any sample count.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 import pkmtol.values as values
-from pkmtol.error_model.accuracy import grid_norm_moments
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments
+
+#: Samples drawn and evaluated at a time (up to it, one chunk: exactly the unchunked computation).
+SEARCH_CHUNK = 16_384
 
 
 @dataclass(frozen=True)
@@ -37,16 +45,44 @@ def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator)
     values.count("samples", samples, low=2)
     values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator (np.random.default_rng(seed))")
     m, _, n = J.shape
-    eta = rng.standard_normal((samples, n))
-    sampled = np.empty(m)
-    for j in range(m):
-        sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
+    if samples <= SEARCH_CHUNK:
+        eta = rng.standard_normal((samples, n))
+        sampled = np.empty(m)
+        for j in range(m):
+            sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
+    else:
+        sampled = _chunked_sigma(J, samples, rng)
     moments = grid_norm_moments(J)
     return PoseSearch(
         sigma_sampled_m=sampled,
         sigma_analytic_m=moments[:, 1],
         mean_analytic_m=moments[:, 0],
-        worst_index=int(np.argmax(sampled)),
-        worst_index_analytic=int(np.argmax(moments[:, 1])),
+        worst_index=first_max(sampled),
+        worst_index_analytic=first_max(moments[:, 1]),
         samples=samples,
     )
+
+
+def _chunked_sigma(J: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Sample standard deviation (ddof 1) of ``‖J_j η‖`` per pose, chunk by chunk (m,).
+
+    Per chunk, ``Σ Δλ`` and ``Σ Δλ²`` (the latter exact: ``Δλ² = ‖J_j η‖²``) give the chunk's mean
+    and squared deviations; chunks are merged by Chan et al.'s update.
+    """
+    m, _, n = J.shape
+    flat = J.transpose(2, 1, 0).reshape(n, 3 * m)  # η @ flat = [x components | y | z] of all J_j η
+    count, mean, m2 = 0, np.zeros(m), np.zeros(m)
+    for start in range(0, samples, SEARCH_CHUNK):
+        c = min(SEARCH_CHUNK, samples - start)
+        eta = rng.standard_normal((c, n))
+        comp = eta @ flat
+        np.square(comp, out=comp)
+        sq = comp[:, :m] + comp[:, m : 2 * m] + comp[:, 2 * m :]  # (c, m): Δλ²
+        mean_c = np.sqrt(sq).sum(axis=0) / c
+        m2_c = np.maximum(sq.sum(axis=0) - c * mean_c * mean_c, 0.0)
+        delta = mean_c - mean
+        total = count + c
+        mean = mean + delta * (c / total)
+        m2 = m2 + m2_c + delta * delta * (count * c / total)
+        count = total
+    return np.sqrt(m2 / (count - 1))

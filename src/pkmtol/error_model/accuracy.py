@@ -58,3 +58,21 @@ def grid_norm_moments(J: np.ndarray, sigma: np.ndarray | None = None) -> np.ndar
     ``η_i ~ N(0, σ_i²)`` (``σ`` defaults to ones).
     """
     return np.array([norm_moments(covariance_eigenvalues(Jj, sigma)) for Jj in J]).reshape(-1, 2)
+
+
+#: Values within this relative distance of the largest count as tied with it.
+TIE_TOLERANCE = 1e-9
+
+
+def first_max(values: np.ndarray) -> int:
+    """Index of the largest value, the first one among those tied with it to :data:`TIE_TOLERANCE`.
+
+    Symmetric mechanisms have pairs of poses with the same σ[Δλ] up to round-off; ``np.argmax``
+    would pick one of a pair by the last bit, which changes with any reordering of the arithmetic.
+
+    >>> first_max(np.array([1.0, 3.0, 3.0 * (1 + 1e-14), 2.0]))
+    1
+    """
+    v = np.asarray(values, dtype=float)
+    top = float(v.max())
+    return int(np.flatnonzero(v >= top - TIE_TOLERANCE * abs(top))[0])

@@ -99,6 +99,26 @@ class ParameterSet:
             offsets.append(raw[n_orig:])
         return eps, np.concatenate(offsets)
 
+    def perturbations(self, eta: np.ndarray, mechanism: Mechanism) -> tuple[list[np.ndarray], np.ndarray]:
+        """:meth:`perturbation` of many parameter vectors at once.
+
+        Args:
+            eta: Shape (c, n): parameter values [m, rad].
+            mechanism: The mechanism this set belongs to.
+
+        Returns:
+            ``(eps, offsets)``: per limb ``ε`` of shape (c, nq_i + 1, 6) (the ``eps`` of
+            :meth:`pkmtol.kinematics.batch.BatchChain.forward`), and offsets (c, Σ nq_i).
+        """
+        eta = np.asarray(eta, dtype=float).reshape(-1, len(self))
+        eps, offsets = [], []
+        for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
+            raw = eta[:, sl] @ sel.T
+            n_orig = 6 * (limb.nq + 1)
+            eps.append(raw[:, :n_orig].reshape(-1, limb.nq + 1, 6))
+            offsets.append(raw[:, n_orig:])
+        return eps, np.concatenate(offsets, axis=1)
+
 
 def parameter_set(mechanism: Mechanism, kind: str = "urdf") -> ParameterSet:
     """The ``urdf`` or ``dh`` parameter set of a mechanism.

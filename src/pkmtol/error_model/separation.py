@@ -32,7 +32,8 @@ import pinocchio as pin
 import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.twists import raw_columns_local, to_k_prime
-from pkmtol.exceptions import MobilityError, SingularPoseError
+from pkmtol.exceptions import KinematicsError, MobilityError, SingularPoseError
+from pkmtol.kinematics.batch import BatchChain, Solutions
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.model.mechanism import Mechanism
 
@@ -155,7 +156,7 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
             # w ∈ range(T_i) (⟂ W_c) and reciprocal to the passive twists: row a of the
             # pseudo-inverse T_i⁺ = V_r S_r⁻¹ U_rᵀ, since T_i⁺ T_i = I when the joints are independent
             w = u[:, :rank] @ (vt[:rank, a] / sv[:rank])
-            passive = [k for k in range(limb.nq) if k != a]
+            passive = [j for j in range(limb.nq) if j != a]
             reciprocity = max(abs(w @ t_i[:, a] - 1.0), np.abs(w @ t_i[:, passive]).max(initial=0.0))
             if not reciprocity < 1e-6:
                 raise MobilityError(
@@ -217,3 +218,222 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         incompatible_map=incompatible,
         actuation_map=W_inv_T[:, :f] * lam_arr[None, :],
     )
+
+
+def separate_many(
+    mechanism: Mechanism, pset: ParameterSet, batch: BatchChain, sols: Solutions
+) -> list[Separation | KinematicsError]:
+    """:func:`separate` at every solved pose of a batch, the numpy work stacked over the poses.
+
+    Per pose and limb, Pinocchio gives the kinematic regressor (one ``forwardKinematics`` and one
+    ``computeFrameKinematicRegressor`` on the batch's reused ``Data``); the joint twists are the
+    Jacobians the solver left in ``sols``. The rest is stacked: the wrenches of a 6-joint limb
+    from the stacked inverse of its joint twists (its pseudo-inverse, since the twists are then
+    a basis; an SVD only where the inverse's condition bound cannot certify rank 6), of a limb with
+    fewer joints from a stacked SVD (the same basis of constraint wrenches as :func:`separate`),
+    W's condition number from a stacked SVD, ``W⁻ᵀ`` from a stacked inverse.
+
+    Args:
+        mechanism: The mechanism.
+        pset: The error-parameter set.
+        batch: The batch solver that produced ``sols`` (its nominal models and datas are reused).
+        sols: Solutions of inverse problems.
+
+    Returns:
+        Per problem of ``sols``: its :class:`Separation`, or the error :func:`separate` (or the
+        solver) raised for it — :class:`SingularPoseError`, :class:`MobilityError`, or the
+        solver's error.
+    """
+    out: list[Separation | KinematicsError | None] = list(sols.errors)
+    idx = np.array([k for k, e in enumerate(sols.errors) if e is None], dtype=int)
+    if not idx.size:
+        return [e for e in out if e is not None]
+    poses = [sols.pose(int(k)) for k in idx]
+    blocks = _stacked(mechanism, pset, batch, sols, idx)
+    for pos, k in enumerate(idx):
+        block = blocks[pos]
+        result: Separation | KinematicsError
+        if block is None:  # an unusual rank at this pose: the per-pose path decides
+            try:
+                result = separate(mechanism, pset, batch.chain, poses[pos])
+            except KinematicsError as err:
+                result = err
+        elif isinstance(block, dict):
+            result = Separation(pose=poses[pos], **block)
+        else:
+            result = block
+        out[int(k)] = result
+    return [e for e in out if e is not None]
+
+
+def _stacked(
+    mechanism: Mechanism, pset: ParameterSet, batch: BatchChain, sols: Solutions, idx: np.ndarray
+) -> list[dict | KinematicsError | None]:
+    """The fields of each pose's Separation (a dict), its error, or None for the per-pose path."""
+    b, n = len(idx), len(pset)
+    rot = sols.rotation[idx]
+    p_m = sols.p_m[idx]
+    cols = np.zeros((b, 6, n))
+    twists, wa, wc, act_limb, con_limb, lam, ya_rows, yc_rows = [], [], [], [], [], [], [], []
+    errors: list[KinematicsError | None] = [None] * b
+    fallback = np.zeros(b, dtype=bool)
+    for i, limb in enumerate(mechanism.limbs):
+        model, data, fid = batch.models[i], batch.datas[i], batch.fids[i]
+        cols_q = slice(int(batch.offsets[i]), int(batch.offsets[i + 1]))
+        jac = sols.jacobians[i][idx]
+        n_reg = 6 * limb.nq
+        reg = np.empty((b, 6, n_reg))
+        for pos, k in enumerate(idx):
+            pin.forwardKinematics(model, data, sols.q[k, cols_q])
+            reg[pos] = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
+        sel = pset.selections[i]
+        local = reg @ sel[:n_reg] + sel[n_reg : n_reg + 6] + jac @ sel[n_reg + 6 :]
+        t_i = _to_k_prime(rot, jac)
+        e_i = _to_k_prime(rot, local)
+        sl = pset.slices[i]
+        cols[:, :, sl] = e_i
+        twists.append(t_i)
+        pinv, basis, bad = _twist_split(t_i)
+        fallback |= bad
+        for k in range(basis.shape[2]):
+            wc.append(basis[:, :, k])
+            con_limb.append(i)
+            row = np.zeros((b, n))
+            row[:, sl] = np.einsum("bj,bjm->bm", basis[:, :, k], e_i)
+            yc_rows.append(row)
+        for a in limb.actuated:
+            w = pinv[:, a, :]  # row a of T_i⁺: reciprocal to the passive joints, w · t_a = 1
+            passive = [j for j in range(limb.nq) if j != a]
+            dots = np.einsum("bj,bjk->bk", w, t_i)
+            recip = np.abs(dots[:, a] - 1.0)
+            if passive:
+                recip = np.maximum(recip, np.abs(dots[:, passive]).max(axis=1))
+            for bad_pose in np.flatnonzero(~(recip < 1e-6) & ~fallback):
+                pos = int(bad_pose)
+                errors[pos] = errors[pos] or MobilityError(
+                    f"limb '{limb.name}': the actuated joint moves the platform only within the "
+                    f"passive joints' span at P = {p_m[pos]} m (actuation singularity)"
+                )
+            f_norm = np.linalg.norm(w[:, :3], axis=1)
+            scale = np.where(
+                f_norm > 1e-9 * np.linalg.norm(w, axis=1), f_norm, np.linalg.norm(w[:, 3:], axis=1)
+            )
+            w = w / scale[:, None]
+            wa.append(w)
+            act_limb.append(i)
+            lam.append(np.einsum("bj,bj->b", w, t_i[:, :, a]))
+            row = np.zeros((b, n))
+            row[:, sl] = np.einsum("bj,bjm->bm", w, e_i)
+            ya_rows.append(row)
+    f, c = len(wa), len(wc)
+    W = np.concatenate(
+        [
+            np.stack(wa, axis=2) if f else np.zeros((b, 6, 0)),
+            np.stack(wc, axis=2) if c else np.zeros((b, 6, 0)),
+        ],
+        axis=2,
+    )
+    if f + c < 6:
+        err = MobilityError(
+            f"only {f} actuation + {c} constraint wrenches at P = {p_m[0]} m; the platform keeps "
+            f"{6 - f - c} uncontrolled freedom(s). Check the actuated joints in mechanism.toml"
+        )
+        return [None if fallback[pos] else err for pos in range(b)]
+    sv = np.linalg.svd(W, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        cond = np.where(sv[:, 5] > 0, sv[:, 0] / sv[:, 5], np.inf)
+    singular = cond > W_SINGULAR_CONDITION
+    y_a = np.stack(ya_rows, axis=1) if f else np.zeros((b, 0, n))
+    y_c = np.stack(yc_rows, axis=1) if c else np.zeros((b, 0, n))
+    usable = ~singular & ~fallback
+    w_inv_t = np.full((b, 6, f + c), np.nan)
+    if usable.any():
+        wu = W[usable]
+        w_inv_t[usable] = (
+            np.swapaxes(np.linalg.inv(wu), 1, 2) if f + c == 6 else np.linalg.pinv(np.swapaxes(wu, 1, 2))
+        )
+    y = np.concatenate([y_a, y_c], axis=1)
+    twist_map = w_inv_t @ y
+    unc = w_inv_t[:, :, f:] @ y_c
+    incompatible = y - np.swapaxes(W, 1, 2) @ twist_map
+    lever = rot @ mechanism.reference_point_m
+    to_p = np.zeros((b, 3, 6))
+    to_p[:, :, :3] = np.eye(3)
+    to_p[:, :, 3:] = -_skew_rows(lever)
+    lam_arr = np.stack(lam, axis=1) if f else np.zeros((b, 0))
+    correction = -(y_a / lam_arr[:, :, None]) if f else np.zeros((b, 0, n))
+    J, J_total = to_p @ unc, to_p @ twist_map
+    actuation = w_inv_t[:, :, :f] * lam_arr[:, None, :]  # W⁻ᵀ [diag(Λ_a); 0]
+    out: list[dict | KinematicsError | None] = []
+    for pos in range(b):
+        if fallback[pos]:
+            out.append(None)
+        elif errors[pos] is not None:
+            out.append(errors[pos])
+        elif singular[pos]:
+            out.append(SingularPoseError("the wrench matrix W", float(cond[pos]), p_m[pos]))
+        else:
+            out.append(
+                {
+                    "joint_twists": tuple(t[pos] for t in twists),
+                    "error_columns": cols[pos],
+                    "W_a": W[pos, :, :f],
+                    "W_c": W[pos, :, f:],
+                    "constraint_limb": np.array(con_limb, dtype=int),
+                    "actuated_limb": np.array(act_limb, dtype=int),
+                    "Lambda_a": lam_arr[pos],
+                    "Y_a": y_a[pos],
+                    "Y_c": y_c[pos],
+                    "W_condition": float(cond[pos]),
+                    "twist_map": twist_map[pos],
+                    "correction": correction[pos],
+                    "uncompensated_map": unc[pos],
+                    "lever_m": lever[pos],
+                    "J": J[pos],
+                    "J_total": J_total[pos],
+                    "redundancy": f + c - 6,
+                    "incompatible_map": incompatible[pos],
+                    "actuation_map": actuation[pos],
+                }
+            )
+    return out
+
+
+def _to_k_prime(rot: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """:func:`to_k_prime` on stacks: ``rot`` (b, 3, 3), ``local`` (b, 6, k)."""
+    out = np.empty_like(local)
+    out[:, :3] = rot @ local[:, :3]
+    out[:, 3:] = rot @ local[:, 3:]
+    return out
+
+
+def _skew_rows(v: np.ndarray) -> np.ndarray:
+    z = np.zeros(len(v))
+    x, y, w = v[:, 0], v[:, 1], v[:, 2]
+    return np.stack([z, -w, y, w, z, -x, -y, x, z], axis=1).reshape(-1, 3, 3)
+
+
+def _twist_split(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pseudo-inverse (b, nq, 6) and constraint-wrench basis (b, 6, 6 − rank) of joint twists (b, 6, nq).
+
+    The rank must be the same at every pose; a pose where it differs (or cannot be certified) is
+    flagged in the mask for the per-pose path.
+    """
+    b, _, nq = t.shape
+    if nq == 6:
+        try:
+            inv = np.linalg.inv(t)
+        except np.linalg.LinAlgError:
+            inv = np.full_like(t, np.nan)
+        fro = np.linalg.norm(t, axis=(1, 2))
+        bound = fro * np.linalg.norm(inv, axis=(1, 2))
+        # s_max ≥ ‖T‖_F/√6 and s_min ≥ s_max/κ_F: rank 6 by the rule of null_space() when
+        # s_max/(√6 κ_F) > RANK_TOLERANCE · max(‖T‖_F, 1)
+        sure = np.isfinite(bound) & (fro / (np.sqrt(6.0) * bound) > RANK_TOLERANCE * np.maximum(fro, 1.0))
+        return inv, np.zeros((b, 6, 0)), ~sure
+    u, sv, vt = np.linalg.svd(t)
+    ranks = np.sum(sv > RANK_TOLERANCE * np.maximum(sv[:, :1], 1.0), axis=1)
+    rank = int(np.bincount(ranks).argmax())
+    r = slice(0, rank)
+    pinv = np.swapaxes(vt[:, r], 1, 2) @ (np.swapaxes(u[:, :, r], 1, 2) / sv[:, r, None])
+    return pinv, u[:, :, rank:], ranks != rank

@@ -10,14 +10,19 @@ from tqdm import tqdm
 
 import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.error_model.separation import Separation, separate
+from pkmtol.error_model.separation import Separation, separate_many
+from pkmtol.exceptions import KinematicsError
+from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.kinematics.continuation import continuation
 from pkmtol.model.mechanism import Mechanism
 
 #: Relative size of a projection below which it counts as zero (classification).
 ZERO_TOLERANCE = 1e-9
 
 CLASSES = ("absorbed", "compensatable", "uncompensatable")
+#: Poses solved together (bounds the solver's working memory).
+CHUNK = 512
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,37 +95,72 @@ def sweep(
 ) -> Sweep:
     """Solve the inverse kinematics at every point and separate the errors there.
 
+    The points are solved in batches (:class:`pkmtol.kinematics.batch.BatchChain`,
+    :func:`pkmtol.error_model.separation.separate_many`). Without ``guesses``, they are reached by
+    continuation from the refined home (:func:`pkmtol.kinematics.continuation.continuation`).
+
     Args:
         mechanism: The mechanism.
         pset: The error-parameter set.
         points_m: Shape (m, 3): positions of P in K [m].
-        chain: Solver workspace (created if None).
-        guesses: Shape (m, Σ nq): initial guesses; default: a tangent step from the previous
-            point's solution (the first point starts from the refined home).
+        chain: Solver workspace (created if None); its models and limit check are used.
+        guesses: Shape (m, Σ nq): initial guesses; default: continuation as above.
         progress: Show a progress bar.
+
+    Raises:
+        KinematicsError: the error of the first point (in point order) that cannot be solved or
+            separated — unreachable, outside a joint limit, or singular.
     """
     values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
     values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
     points_m = values.array_of_shape("points_m", points_m, (None, 3))
     chain = chain or ClosedChain(mechanism)
-    poses: list[Pose] = []
-    seps = []
-    it = tqdm(points_m, desc="poses", unit="pose", disable=not progress, leave=False)
-    for k, p in enumerate(it):
-        if guesses is not None:
-            q0 = guesses[k]
-        elif poses:
-            q0 = chain.predict(poses[-1], p)  # tangent step from the previous point
-        else:
-            q0 = chain.home()
-        pose = chain.inverse(p, q0)
-        poses.append(pose)
-        seps.append(separate(mechanism, pset, chain, pose))
+    batch = BatchChain(mechanism, chain=chain)
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    m = len(points)
+    bar = tqdm(total=m, desc="poses", unit="pose", disable=not progress, leave=False)
+    results: list[Separation | KinematicsError | None] = [None] * m
+    if guesses is not None:
+        q0 = np.asarray(guesses, dtype=float).reshape(m, -1)
+        for start in range(0, m, CHUNK):
+            part = slice(start, min(start + CHUNK, m))
+            sols = batch.inverse(points[part], q0[part])
+            results[part] = separate_many(mechanism, pset, batch, sols)
+            bar.update(part.stop - part.start)
+    else:
+        solved = continuation(batch, points, chain.home(), progress=bar.update)
+        for start in range(0, m, CHUNK):
+            part = slice(start, min(start + CHUNK, m))
+            results[part] = separate_many(
+                mechanism, pset, batch, solved.take(np.arange(part.start, part.stop))
+            )
+    bar.close()
+    failed = next((r for r in results if not isinstance(r, Separation)), None)
+    if failed is not None:
+        raise failed if isinstance(failed, KinematicsError) else AssertionError("a point was not solved")
+    seps = [r for r in results if isinstance(r, Separation)]
     return Sweep(
-        points_m=np.asarray(points_m, dtype=float),
-        poses=tuple(poses),
+        points_m=points,
+        poses=tuple(s.pose for s in seps),
         separations=tuple(seps),
-        J=np.array([s.J for s in seps]),
-        J_total=np.array([s.J_total for s in seps]),
+        J=np.array([s.J for s in seps]).reshape(m, 3, len(pset)),
+        J_total=np.array([s.J_total for s in seps]).reshape(m, 3, len(pset)),
         W_condition=np.array([s.W_condition for s in seps]),
     )
+
+
+def guesses_near(grid: Sweep, points_m: np.ndarray) -> np.ndarray:
+    """Initial guesses (m, Σ nq) for ``points_m`` (m, 3): a tangent step off the nearest grid pose.
+
+    ``q_k + (∂q/∂P)_k (p − p_k)`` with ``k`` the nearest point of ``grid`` (its plain joint values
+    when the pose has no tangent).
+    """
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    nearest = np.argmin(((points[:, None, :] - grid.points_m[None]) ** 2).sum(-1), axis=1)
+    out = np.empty((len(points), grid.poses[0].q_all.size))
+    for i, k in enumerate(nearest):
+        pose = grid.poses[k]
+        out[i] = pose.q_all
+        if pose.tangent is not None:
+            out[i] += pose.tangent @ (points[i] - pose.p_m)
+    return out

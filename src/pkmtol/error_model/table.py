@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pkmtol.error_model.accuracy import grid_norm_moments, sensitivities
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.sweep import Sweep, sweep
 from pkmtol.exceptions import InvalidArgumentError
@@ -82,7 +82,7 @@ def error_table(
     cols = unc if unc else list(range(len(pset)))
     maps = grid.J if unc else grid.J_total
     sigma = grid_norm_moments(maps[:, :, cols])[:, 1]
-    worst = int(np.argmax(sigma))
+    worst = first_max(sigma)
     sens = np.zeros(len(pset))
     sens[unc] = sensitivities(grid.J[worst][:, unc])
     return ErrorTable(

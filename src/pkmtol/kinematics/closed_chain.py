@@ -48,7 +48,10 @@ class Pose:
         oMp: Platform placement in K (limb 0's platform frame), ``pin.SE3``.
         p_m: Position of the reference point P in K, shape (3,) [m].
         residual: Norm of the closure (and task) residual at the solution [m, rad].
-        condition: Condition number of the closure(+task) Jacobian at the solution.
+        condition: Condition number of the closure(+task) Jacobian at the solution (the batched
+            solver stores its upper bound ``‖A‖_F ‖A⁻¹‖_F``, docs/theory.md).
+        tangent: Shape (Σ nq_i, 3): ``∂q/∂P`` at an inverse solution (the task columns of the
+            inverse Jacobian), for a first-order guess at a nearby target; None if not known.
     """
 
     q: tuple[np.ndarray, ...]
@@ -56,6 +59,7 @@ class Pose:
     p_m: np.ndarray
     residual: float
     condition: float
+    tangent: np.ndarray | None = None
 
     @property
     def q_all(self) -> np.ndarray:
@@ -120,14 +124,14 @@ class ClosedChain:
         try:
             q, _, _ = self._newton(q0, free, None, "home closure")
         except SingularPoseError as err:
-            worst = self._worst_limb(q0)
+            worst = self.worst_limb(q0)
             if max(worst[2], worst[3]) > 1e-9:
                 raise PlatformMismatchError(*worst) from err
             raise SingularPoseError(
                 "the closure Jacobian at the home configuration (actuators held)", err.condition
             ) from err
         except ConvergenceError as err:
-            raise PlatformMismatchError(*self._worst_limb(q0)) from err
+            raise PlatformMismatchError(*self.worst_limb(q0)) from err
         return q
 
     def inverse(self, target_m: np.ndarray, q0: np.ndarray | None = None) -> Pose:
@@ -149,7 +153,7 @@ class ClosedChain:
         try:
             q, cond, res = self._newton(q0, free, target, "inverse kinematics")
         except ConvergenceError as err:
-            limb = self._worst_limb(self._failed_q)[0] if self._failed_q is not None else None
+            limb = self.worst_limb(self._failed_q)[0] if self._failed_q is not None else None
             raise UnreachableTargetError(
                 target,
                 "the closure equations have no solution near the initial guess "
@@ -293,24 +297,40 @@ class ClosedChain:
         raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
 
     def _check_limits(self, q: np.ndarray, target: np.ndarray) -> None:
-        if not self.check_limits:
-            return
-        bad = np.flatnonzero((q < self.lower - 1e-12) | (q > self.upper + 1e-12))
-        if bad.size:
-            k = int(bad[0])
-            i = int(np.searchsorted(self.offsets, k, side="right") - 1)
-            limb = self.mechanism.limbs[i]
-            j = k - int(self.offsets[i])
-            raise JointLimitError(
-                target,
-                limb.name,
-                limb.joint_names[j],
-                float(q[k]),
-                float(self.lower[k]),
-                float(self.upper[k]),
-            )
+        if self.check_limits:
+            err = self.limit_violation(q, target)
+            if err is not None:
+                raise err
 
-    def _worst_limb(self, q: np.ndarray) -> tuple[str, str, float, float]:
+    def limit_violation(self, q: np.ndarray, target: np.ndarray) -> JointLimitError | None:
+        """The error for the first joint of ``q`` (Σ nq,) outside its URDF limits, or None.
+
+        Args:
+            q: All joint values [rad or m].
+            target: The target of P the solution was for, shape (3,) [m] (named in the error).
+        """
+        bad = np.flatnonzero((q < self.lower - 1e-12) | (q > self.upper + 1e-12))
+        if not bad.size:
+            return None
+        k = int(bad[0])
+        i = int(np.searchsorted(self.offsets, k, side="right") - 1)
+        limb = self.mechanism.limbs[i]
+        j = k - int(self.offsets[i])
+        return JointLimitError(
+            target,
+            limb.name,
+            limb.joint_names[j],
+            float(q[k]),
+            float(self.lower[k]),
+            float(self.upper[k]),
+        )
+
+    def worst_limb(self, q: np.ndarray) -> tuple[str, str, float, float]:
+        """The limb whose platform frame is furthest from limb 0's at ``q`` (Σ nq,).
+
+        Returns:
+            ``(limb, limb 0, translation gap [m], rotation gap [rad])``.
+        """
         oMp = self.platform_placements(q)
         worst = (self.mechanism.limbs[0].name, self.mechanism.limbs[0].name, 0.0, 0.0)
         best = -1.0

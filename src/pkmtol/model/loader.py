@@ -5,7 +5,9 @@ from __future__ import annotations
 import math
 import os
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,12 +23,25 @@ from pkmtol.units import parse_angle, parse_length
 from pkmtol.values import MAX_LENGTH_M
 
 
-def load_mechanism(folder: Path | str) -> Mechanism:
+def load_mechanism(
+    folder: Path | str,
+    doc: Mapping[str, Any] | None = None,
+    urdf_texts: Mapping[str, str] | None = None,
+    check_home_closure: bool = True,
+) -> Mechanism:
     """Load ``<folder>/mechanism.toml`` and its limbs.
 
     The limbs come from one of: ``[[limbs]]`` tables (one URDF each), a ``[closed_loop]`` table
     (one URDF tree with closure frames, docs/closed-loop.md) or an ``[mjcf]`` table (one MJCF file
     whose loops are ``<weld>`` equalities, docs/closed-loop.md, "MJCF").
+
+    Args:
+        folder: The robot folder.
+        doc: The parsed TOML to use instead of the file's (a design variant); paths in it are
+            relative to ``folder``.
+        urdf_texts: Per limb name, URDF text to use instead of the limb's file.
+        check_home_closure: Check that the platform frames coincide at ``home`` (see
+            :meth:`Mechanism.from_limbs`).
 
     Raises:
         InvalidArgumentError: ``folder`` is not a path.
@@ -45,6 +60,8 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         )
     folder = Path(folder)
     path = folder / "mechanism.toml"
+    if doc is not None:
+        return _from_doc(folder, path, dict(doc), urdf_texts or {}, check_home_closure)
     if not folder.is_dir():
         raise MechanismFormatError(
             path, "-", f"'{folder}' is not a folder; give a robot folder such as robots/r2rps_ups"
@@ -58,6 +75,12 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
+    return _from_doc(folder, path, doc, urdf_texts or {}, check_home_closure)
+
+
+def _from_doc(
+    folder: Path, path: Path, doc: dict[str, Any], urdf_texts: Mapping[str, str], check_home_closure: bool
+) -> Mechanism:
     check_keys(path, doc)
     check_finite(path, doc)
     r = TomlReader(path, doc)
@@ -138,7 +161,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         if home is not None and home.ndim != 1:
             lr.fail("home", f"expected a list of numbers, one per joint, got {ld['home']!r}")
         dh = read_dh(lr) if "dh" in ld else None
-        model, visual = load_urdf(lname, urdf)
+        model, visual = load_urdf(lname, urdf, urdf_texts.get(lname))
         limb = make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual)
         if dh is not None:
             check_dh_matches(limb, dh, f"python scripts/dh_to_urdf.py {folder}")
@@ -158,6 +181,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
             "calibration": r.get("calibration", dict, default={}),
             "design": design_extra,
         },
+        check_home_closure=check_home_closure,
     )
 
 

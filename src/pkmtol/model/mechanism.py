@@ -185,10 +185,13 @@ class Mechanism:
         root: Path | None = None,
         description: str = "",
         extra: dict[str, Any] | None = None,
+        check_home_closure: bool = True,
     ) -> Mechanism:
         """A mechanism from validated limbs, checked: one common root link, closed at ``home``.
 
         Every constructor of pkmtol (TOML, ``pin.Model`` limbs, closed-loop tree) ends here.
+        ``check_home_closure=False`` leaves the ``home`` check to the caller (a design variant
+        whose dimensions moved the platform frames apart at the nominal ``home``).
 
         Raises:
             URDFError: the limbs start from different root links.
@@ -211,7 +214,8 @@ class Mechanism:
             extra=dict(extra or {}),
         )
         check_root_links(mech)
-        check_home(mech)
+        if check_home_closure:
+            check_home(mech)
         return mech
 
 

@@ -115,11 +115,15 @@ def build_visuals(model: pin.Model, root: ET.Element, limb: str, path: Path, tex
     return None
 
 
-def load_urdf(limb: str, path: Path) -> tuple[pin.Model, Any]:
-    """Read a limb URDF: ``(pin.Model, visual GeometryModel or None)``; raises URDFError naming the limb."""
-    if not path.is_file():
+def load_urdf(limb: str, path: Path, text: str | None = None) -> tuple[pin.Model, Any]:
+    """Read a limb URDF: ``(pin.Model, visual GeometryModel or None)``; raises URDFError naming the limb.
+
+    ``text`` replaces the file's content (a URDF made in memory, e.g. from a changed D–H table).
+    """
+    if text is None and not path.is_file():
         raise URDFError(limb, path, "file not found; check the 'urdf' entry of this limb in mechanism.toml")
-    text = read_text(path, lambda problem: URDFError(limb, path, problem))
+    if text is None:
+        text = read_text(path, lambda problem: URDFError(limb, path, problem))
     model, root = build_model(limb, path, text)
     return model, build_visuals(model, root, limb, path, text)
 

@@ -55,6 +55,24 @@ _GREEK = {
 }
 
 
+_SUBSCRIPT = str.maketrans("0123456789e", "₀₁₂₃₄₅₆₇₈₉ₑ")
+
+
+def label_name(name: str) -> str:
+    """A parameter name as an axis label: a D–H symbol's indices as Unicode subscripts (``δθ₁,₄``).
+
+    Plain text instead of mathtext: the labels of the three figures cost a third of their drawing
+    time as mathtext.
+
+    >>> label_name("δθ_{e,4}"), label_name("limb1.limb1_u1.dx")
+    ('δθₑ,₄', 'limb1.limb1_u1.dx')
+    """
+    if "_{" not in name or not name.endswith("}"):
+        return name
+    head, sub = name[:-1].split("_{", 1)
+    return head + sub.translate(_SUBSCRIPT)
+
+
 def tex_name(name: str) -> str:
     """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``).
 
@@ -82,7 +100,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
     x = np.arange(len(unc))
     colours = [_unit_colour(p.unit) for p in params]
     ax.bar(x, values, color=colours, edgecolor="black", linewidth=0.5)
-    ax.set_xticks(x, [tex_name(p.name) for p in params], rotation=60, ha="right")
+    ax.set_xticks(x, [label_name(p.name) for p in params], rotation=60, ha="right")
     ax.set_xlim(-0.7, len(unc) - 0.3)
     ax.set_ylabel("sensitivity ω_i  [µm/µm or µm/µrad]")
     p = np.round(result.worst_point_m * 1e3) + 0.0  # no "-0"
@@ -213,7 +231,7 @@ def tolerance_figure(result: DesignResult) -> Any:
     ax.set_ylim(top=top)
     ax.set_xticks(
         x,
-        [tex_name(p.name) + (" (µrad)" if p.unit == "rad" else "") for p in params],
+        [label_name(p.name) + (" (µrad)" if p.unit == "rad" else "") for p in params],
         rotation=60,
         ha="right",
     )

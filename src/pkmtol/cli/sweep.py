@@ -1,0 +1,73 @@
+"""``pkmtol sweep``: dimensional synthesis — the accuracy design over a grid of mechanism.toml numbers."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pkmtol.cli.common import add_executor_options, executor_from
+from pkmtol.design.synthesis import check_keys, parse_vary, read_doc, synthesize
+from pkmtol.exceptions import FiguresError
+from pkmtol.model.loader import load_mechanism
+from pkmtol.present.synthesis import summary_text, write_sweep
+from pkmtol.present.tables import check_output_folder
+
+
+def add(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``pkmtol sweep`` and its options."""
+    p = subparsers.add_parser(
+        "sweep",
+        help="dimensional synthesis: reachability, worst σ[Δλ], tolerances and cost per design variant",
+        description="Vary numbers of mechanism.toml (dimensions, D–H entries, the reference point, the "
+        "task space) over a grid and run the accuracy design of every variant: whether the task "
+        "space is reachable, the worst σ[Δλ] (every uncompensatable error ~ N(0, 1)), the FOSM "
+        "tolerances at the design β, σ[Δλ] when the tolerances of the robot as given are kept, and "
+        "the cost of the tolerances. URDFs of limbs whose D–H table changes are regenerated in "
+        "memory. Writes sweep.csv, sweep.json and sweep.png/.svg into --out.",
+    )
+    p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
+    p.add_argument(
+        "--vary",
+        action="append",
+        required=True,
+        metavar="KEY=START:STOP:N",
+        help="a number of mechanism.toml and N values from START to STOP (file units: m, degrees "
+        "for D–H angles), e.g. reference_point.position_m[2]=0.1:0.5:5 or "
+        "limbs[limb1].dh.links[0][2]=0.45:0.55:3; repeat for a grid of variants",
+    )
+    p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.add_argument("--beta", type=float, default=None, help="β of the tolerances (default: the design β)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>-sweep)")
+    p.add_argument("--no-figures", action="store_true", help="do not write the figure")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor_options(p)
+    p.set_defaults(run=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    varies = [parse_vary(spec) for spec in args.vary]
+    load_mechanism(args.robot)  # a robot that cannot load fails before any output
+    check_keys(read_doc(args.robot), varies)
+    executor = executor_from(args)
+    out = args.out if args.out is not None else Path("out") / f"{args.robot.name}-sweep"
+    check_output_folder(out)
+    from tqdm import tqdm
+
+    total = 1
+    for v in varies:
+        total *= len(v.values)
+    bar = tqdm(
+        total=total, desc="variants", unit="variant", disable=args.no_progress or not sys.stderr.isatty()
+    )
+    result = synthesize(args.robot, varies, args.pset, args.beta, executor, progress=lambda n: bar.update(1))
+    bar.close()
+    print(summary_text(result), end="")
+    try:
+        files = write_sweep(result, out, figures=not args.no_figures)
+    except FiguresError as err:
+        print(f"pkmtol: warning: no figure: {err}", file=sys.stderr)
+        files = write_sweep(result, out, figures=False)
+    for path in files:
+        print(f"wrote {path}")
+    return 0

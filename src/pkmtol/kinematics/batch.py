@@ -1,0 +1,566 @@
+"""Many independent closed-chain solves at once: Newton in lockstep, numpy work stacked over the poses.
+
+:class:`BatchChain` solves ``B`` inverse (task → joints) or forward (actuators → pose) problems of
+one mechanism together. Each Newton iteration calls Pinocchio once per pose and limb (one ``Data``
+per limb, reused for every pose), then does the rest for all poses in one go: the closure residual
+``log6(oMp_0⁻¹ oMp_i)`` and its Jacobian (:mod:`pkmtol.kinematics.se3_batch`), the Jacobian
+assembly and a stacked LU solve (least squares by stacked QR for over-constrained mechanisms).
+Poses leave the batch when they converge. The equations, tolerances, step limit and error rules
+are those of :class:`pkmtol.kinematics.closed_chain.ClosedChain`, so a pose gets the same solution
+(to the Newton tolerance) and the same error as with ``ClosedChain.inverse``/``forward``.
+
+Perturbed mechanisms (the exact verification, a calibration study) use a workspace of scratch limb
+models, one per slot of the batch, made once: a sample's joint placements
+``jointPlacements[j] · exp6(ε_j)`` are written into its slot's model in place, the platform
+attachment error ``exp6(ε_e)`` is applied in numpy. No ``Model`` copy and no ``createData`` per
+sample.
+
+Conditioning: instead of an SVD per solve, the converged Jacobian's condition number is bounded by
+``κ_F = ‖A‖_F ‖A⁻¹‖_F`` (``κ₂ ≤ κ_F ≤ n κ₂``; for an over-determined ``A``, ``√κ_F(AᵀA)``) from one
+stacked inverse. Only a pose whose bound exceeds ``SINGULAR_CONDITION`` gets the SVD, so a pose is
+called singular exactly when ``ClosedChain`` calls it singular; ``Solutions.condition`` holds the
+bound.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+
+from pkmtol.exceptions import (
+    ConvergenceError,
+    KinematicsError,
+    SingularPoseError,
+    UnreachableTargetError,
+)
+from pkmtol.kinematics import se3_batch
+from pkmtol.kinematics.closed_chain import (
+    MAX_ITERATIONS,
+    SINGULAR_CONDITION,
+    SINGULAR_RESIDUAL,
+    TOLERANCE,
+    ClosedChain,
+    Pose,
+)
+from pkmtol.model.mechanism import Mechanism
+
+
+@dataclass(frozen=True, eq=False)
+class Solutions:
+    """Solutions of ``B`` closed-chain problems (``N = Σ nq_i`` joints, frame K, SI units).
+
+    Rows of a failed problem hold its last iterate; ``errors[k]`` says why it failed.
+
+    Attributes:
+        q: Shape (B, N): all joint values (actual values: offsets included) [rad or m].
+        rotation: Shape (B, 3, 3): platform orientation in K (limb 0's platform frame).
+        translation: Shape (B, 3): position of the platform point O' in K [m].
+        p_m: Shape (B, 3): position of the reference point P in K [m].
+        residual: Shape (B,): norm of the closure (+ task) residual [m, rad].
+        condition: Shape (B,): upper bound ``κ_F`` of the Jacobian's 2-norm condition number.
+        jacobians: Per limb, shape (B, 6, nq_i): platform-frame (local) Jacobian at the solution.
+        system: Shape (B, rows, free): the closure (+ task) Jacobian at the solution.
+        system_inverse: Shape (B, free, rows): its inverse (pseudo-inverse if over-determined).
+        errors: Per problem, None or the :class:`KinematicsError` the per-pose solver raises.
+        limb_offsets: Where each limb's joints start in ``q`` (len(limbs) + 1 entries).
+        task: Whether these are inverse problems (their last three rows are the task of P).
+    """
+
+    q: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    p_m: np.ndarray
+    residual: np.ndarray
+    condition: np.ndarray
+    jacobians: tuple[np.ndarray, ...]
+    system: np.ndarray
+    system_inverse: np.ndarray
+    errors: tuple[KinematicsError | None, ...]
+    limb_offsets: tuple[int, ...]
+    task: bool = False
+
+    def __len__(self) -> int:
+        return len(self.errors)
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Shape (B,): True where the problem was solved."""
+        return np.array([e is None for e in self.errors], dtype=bool)
+
+    def take(self, index: np.ndarray) -> Solutions:
+        """The problems ``index`` (in that order) as a batch of their own."""
+        index = np.asarray(index, dtype=int)
+        return Solutions(
+            q=self.q[index],
+            rotation=self.rotation[index],
+            translation=self.translation[index],
+            p_m=self.p_m[index],
+            residual=self.residual[index],
+            condition=self.condition[index],
+            jacobians=tuple(j[index] for j in self.jacobians),
+            system=self.system[index],
+            system_inverse=self.system_inverse[index],
+            errors=tuple(self.errors[int(k)] for k in index),
+            limb_offsets=self.limb_offsets,
+            task=self.task,
+        )
+
+    @staticmethod
+    def concatenate(parts: Sequence[Solutions]) -> Solutions:
+        """One batch of the problems of ``parts``, in order."""
+        return Solutions(
+            q=np.concatenate([p.q for p in parts]),
+            rotation=np.concatenate([p.rotation for p in parts]),
+            translation=np.concatenate([p.translation for p in parts]),
+            p_m=np.concatenate([p.p_m for p in parts]),
+            residual=np.concatenate([p.residual for p in parts]),
+            condition=np.concatenate([p.condition for p in parts]),
+            jacobians=tuple(np.concatenate(js) for js in zip(*(p.jacobians for p in parts), strict=True)),
+            system=np.concatenate([p.system for p in parts]),
+            system_inverse=np.concatenate([p.system_inverse for p in parts]),
+            errors=tuple(e for p in parts for e in p.errors),
+            limb_offsets=parts[0].limb_offsets,
+            task=parts[0].task,
+        )
+
+    def first_error(self) -> KinematicsError | None:
+        """The error of the first failed problem (in problem order), or None."""
+        return next((e for e in self.errors if e is not None), None)
+
+    def pose(self, k: int) -> Pose:
+        """Problem ``k`` as a :class:`Pose` (``q`` split per limb); raises its error if it failed."""
+        err = self.errors[k]
+        if err is not None:
+            raise err
+        q, o = self.q[k], self.limb_offsets
+        return Pose(
+            q=tuple(q[a:b].copy() for a, b in zip(o[:-1], o[1:], strict=True)),
+            oMp=pin.SE3(self.rotation[k].copy(), self.translation[k].copy()),
+            p_m=self.p_m[k].copy(),
+            residual=float(self.residual[k]),
+            condition=float(self.condition[k]),
+            tangent=self.system_inverse[k][:, -3:].copy() if self.task else None,
+        )
+
+
+class BatchChain:
+    """Batched closed-chain solver of one mechanism (not thread-safe: the workspaces are reused).
+
+    Args:
+        mechanism: The mechanism.
+        models: Optional replacement limb models (e.g. perturbed), same structure as the limbs'.
+        check_limits: Check URDF joint limits of every inverse solution.
+        chain: A per-pose solver of the mechanism whose models, datas and limit check to share
+            (``models`` and ``check_limits`` are then ignored).
+    """
+
+    def __init__(
+        self,
+        mechanism: Mechanism,
+        models: Sequence[pin.Model] | None = None,
+        check_limits: bool = True,
+        chain: ClosedChain | None = None,
+    ) -> None:
+        self.chain = chain or ClosedChain(mechanism, models=models, check_limits=check_limits)
+        self.mechanism = mechanism
+        self.models = self.chain.models
+        self.datas = self.chain.datas
+        self.fids = self.chain.fids
+        self.offsets = self.chain.offsets
+        self.actuated_idx = self.chain.actuated_idx
+        self.n_joints = int(self.offsets[-1])
+        self.p_ref = self.chain.p_ref
+        self._n_closure = 6 * (len(self.models) - 1)
+        self._skew_p = pin.skew(self.p_ref)
+        self._cols = [slice(int(a), int(b)) for a, b in zip(self.offsets[:-1], self.offsets[1:], strict=True)]
+        # the scratch models of each slot: a perturbed limb of slot s runs on _slots[i][s]
+        self._slots: list[list[pin.Model]] = [[] for _ in self.models]
+
+    # --- public ---------------------------------------------------------------------------
+
+    def inverse(self, targets_m: np.ndarray, guesses: np.ndarray) -> Solutions:
+        """Joint values that put P at each target (same equations as :meth:`ClosedChain.inverse`).
+
+        Args:
+            targets_m: Shape (B, 3): positions of P in K [m].
+            guesses: Shape (B, N): initial guesses.
+
+        Returns:
+            The solutions; a problem's error is an :class:`UnreachableTargetError`,
+            :class:`JointLimitError` or :class:`SingularPoseError` naming its target.
+        """
+        targets = np.asarray(targets_m, dtype=float).reshape(-1, 3)
+        q0 = np.array(guesses, dtype=float).reshape(len(targets), self.n_joints)
+        free = np.ones(self.n_joints, dtype=bool)
+        sols = self._newton(q0, free, targets, None, "inverse kinematics")
+        errors = list(sols.errors)
+        outside = (sols.q < self.chain.lower - 1e-12) | (sols.q > self.chain.upper + 1e-12)
+        bad = np.asarray(outside.any(axis=1) & self.chain.check_limits, dtype=bool)
+        for k, err in enumerate(errors):
+            if isinstance(err, ConvergenceError):
+                limb = self.chain.worst_limb(sols.q[k])[0]
+                errors[k] = UnreachableTargetError(
+                    targets[k],
+                    "the closure equations have no solution near the initial guess "
+                    f"({err.residual:.2g} left; the largest closure gap is at this limb)",
+                    limb=limb,
+                )
+            elif isinstance(err, SingularPoseError):
+                errors[k] = SingularPoseError(err.what, err.condition, targets[k])
+            elif err is None and bad[k]:
+                errors[k] = self.chain.limit_violation(sols.q[k], targets[k])
+        return replace(sols, errors=tuple(errors))
+
+    def forward(
+        self,
+        q_actuated: np.ndarray,
+        guesses: np.ndarray,
+        offsets: np.ndarray | None = None,
+        eps: Sequence[np.ndarray] | None = None,
+    ) -> Solutions:
+        """Platform poses for given actuator values (same equations as :meth:`ClosedChain.forward`).
+
+        Args:
+            q_actuated: Shape (B, f): actuator readings, in the order of ``actuated_idx``.
+            guesses: Shape (B, N): initial guesses for all joints.
+            offsets: Shape (B, N): joint zero offsets δq (actual = reading + δq; only the
+                actuated entries matter).
+            eps: Per limb, shape (B, nq_i + 1, 6): joint-origin errors then the platform
+                attachment error of each problem's mechanism (as for
+                :func:`pkmtol.kinematics.perturbation.perturbed_limb_models`); None: nominal.
+
+        Returns:
+            The solutions (``q`` holds actual joint values); a problem's error is a
+            :class:`ConvergenceError` or :class:`SingularPoseError` whose text names the problem.
+        """
+        q = np.array(guesses, dtype=float).reshape(-1, self.n_joints)
+        q[:, self.actuated_idx] = np.asarray(q_actuated, dtype=float).reshape(len(q), -1)
+        if offsets is not None:
+            q[:, self.actuated_idx] += np.asarray(offsets, dtype=float).reshape(len(q), -1)[
+                :, self.actuated_idx
+            ]
+        free = np.ones(self.n_joints, dtype=bool)
+        free[self.actuated_idx] = False
+        perturbation = self._perturb(eps, len(q)) if eps is not None else None
+        return self._newton(q, free, None, perturbation, "forward kinematics")
+
+    def predict(self, sols: Solutions, index: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
+        """First-order guesses (len(index), N) for ``targets_m`` from solved inverse problems ``index``.
+
+        ``q + A⁻¹ [0; Δp]`` with ``A`` the closure + task Jacobian at the solution (as
+        :meth:`ClosedChain.predict`).
+        """
+        index = np.asarray(index, dtype=int)
+        dp = np.asarray(targets_m, dtype=float).reshape(-1, 3) - sols.p_m[index]
+        step = sols.system_inverse[index][:, :, -3:] @ dp[:, :, None]
+        return sols.q[index] + step[:, :, 0]
+
+    # --- internals ------------------------------------------------------------------------
+
+    def _perturb(
+        self, eps: Sequence[np.ndarray], count: int
+    ) -> list[tuple[list[pin.Model], np.ndarray | None]]:
+        """Per limb: the model of each problem (a scratch slot model when perturbed) and ``exp6(ε_e)``.
+
+        Returns, per limb, ``(models, attach)`` with ``attach`` of shape (B, 4, 4) (None when no
+        problem perturbs the attachment).
+        """
+        out = []
+        for i, (limb, e) in enumerate(zip(self.mechanism.limbs, eps, strict=True)):
+            e = np.asarray(e, dtype=float).reshape(count, limb.nq + 1, 6)
+            nominal = self.models[i]
+            slots = self._slots[i]
+            while len(slots) < count:
+                slots.append(nominal.copy())
+            models = []
+            joints_hit = np.asarray(e[:, :-1].any(axis=(1, 2)), dtype=bool)
+            for s in range(count):
+                if not joints_hit[s]:
+                    models.append(nominal)
+                    continue
+                m = slots[s]
+                for j in range(1, nominal.njoints):
+                    m.jointPlacements[j] = nominal.jointPlacements[j] * pin.exp6(e[s, j - 1])
+                models.append(m)
+            attach = None
+            if e[:, -1].any():
+                attach = np.array([pin.exp6(e[s, -1]).homogeneous for s in range(count)])
+            out.append((models, attach))
+        return out
+
+    def _evaluate(
+        self,
+        q: np.ndarray,
+        idx: np.ndarray,
+        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
+    ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per limb, platform placements (b, 4, 4) and local Jacobians (b, 6, nq_i) of problems ``idx``."""
+        placements, jacobians = [], []
+        for i, (model, data, fid, cols) in enumerate(
+            zip(self.models, self.datas, self.fids, self._cols, strict=True)
+        ):
+            models = perturbation[i][0] if perturbation is not None else None
+            hs, js = [], []
+            for k in idx:
+                m = model if models is None else models[k]
+                pin.computeJointJacobians(m, data, q[k, cols])
+                hs.append(pin.updateFramePlacement(m, data, fid).homogeneous)
+                js.append(pin.getFrameJacobian(m, data, fid, pin.LOCAL))
+            h, jac = np.array(hs), np.array(js)
+            attach = perturbation[i][1] if perturbation is not None else None
+            if attach is not None:
+                d = attach[idx]
+                h = h @ d
+                jac = se3_batch.act_inverse(d[:, :3, :3], d[:, :3, 3], jac)
+            placements.append(h)
+            jacobians.append(jac)
+        return placements, jacobians
+
+    def _system(
+        self, placements: list[np.ndarray], jacobians: list[np.ndarray], targets: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Residuals (b, rows), Jacobians (b, rows, N) and a near-half-turn mask (b,).
+
+        The closure rows of every limb pair are computed together: ``e_i = oMp_0⁻¹ oMp_i``,
+        ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``.
+        """
+        b = len(placements[0])
+        n = self._n_closure
+        pairs = len(placements) - 1
+        rows = n + (3 if targets is not None else 0)
+        res = np.empty((b, rows))
+        jac = np.zeros((b, rows, self.n_joints))
+        h = np.stack(placements)  # (L, b, 4, 4)
+        r0, p0 = h[0, :, :3, :3], h[0, :, :3, 3]
+        r0t = np.swapaxes(r0, 1, 2)
+        j0 = jacobians[0]
+        c0 = self._cols[0]
+        if pairs:
+            re = (r0t[None] @ h[1:, :, :3, :3]).reshape(-1, 3, 3)  # (pairs·b, 3, 3)
+            pe = (r0t[None] @ (h[1:, :, :3, 3] - p0[None])[..., None]).reshape(-1, 3)
+            nu, jl, near = se3_batch.log6_and_jacobian(re, pe)
+            res[:, :n] = nu.reshape(pairs, b, 6).transpose(1, 0, 2).reshape(b, n)
+            j0_all = np.broadcast_to(j0, (pairs,) + j0.shape).reshape(-1, 6, j0.shape[2])
+            d0 = -(jl @ se3_batch.act_inverse(re, pe, j0_all))
+            jac[:, :n, c0] = d0.reshape(pairs, b, 6, -1).transpose(1, 0, 2, 3).reshape(b, n, -1)
+            jl = jl.reshape(pairs, b, 6, 6)
+            for i in range(1, pairs + 1):
+                jac[:, 6 * (i - 1) : 6 * i, self._cols[i]] = jl[i - 1] @ jacobians[i]
+            near_pi = np.asarray(near.reshape(pairs, b).any(axis=0), dtype=bool)
+        else:
+            near_pi = np.zeros(b, dtype=bool)
+        if targets is not None:
+            res[:, n:] = (r0 @ self.p_ref) + p0 - targets
+            jac[:, n:, c0] = r0 @ (j0[:, :3] - self._skew_p @ j0[:, 3:])
+        return res, jac, near_pi
+
+    def _pinocchio_rows(
+        self,
+        placements: list[np.ndarray],
+        jacobians: list[np.ndarray],
+        k: int,
+        res: np.ndarray,
+        jac: np.ndarray,
+    ) -> None:
+        """Closure rows of problem ``k`` by Pinocchio (a rotation near a half turn)."""
+        m0 = pin.SE3(placements[0][k])
+        j0 = jacobians[0][k]
+        for i in range(1, len(placements)):
+            e = m0.actInv(pin.SE3(placements[i][k]))
+            sl = slice(6 * (i - 1), 6 * i)
+            res[k, sl] = pin.log6(e).vector
+            jl = pin.Jlog6(e)
+            jac[k, sl, self._cols[i]] = jl @ jacobians[i][k]
+            jac[k, sl, self._cols[0]] = -(jl @ e.toActionMatrixInverse()) @ j0
+
+    def _newton(
+        self,
+        q0: np.ndarray,
+        free: np.ndarray,
+        targets: np.ndarray | None,
+        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
+        what: str,
+    ) -> Solutions:
+        """Lockstep Newton on the free joints of every problem (``ClosedChain._newton``'s rules)."""
+        count = len(q0)
+        q = q0.copy()
+        rows = self._n_closure + (3 if targets is not None else 0)
+        n_free = int(free.sum())
+        done_h = [np.zeros((count, 4, 4)) for _ in self.models]
+        done_j = [np.zeros((count, 6, lb.nq)) for lb in self.mechanism.limbs]
+        system = np.zeros((count, rows, n_free))
+        residual = np.full(count, np.nan)
+        errors: list[KinematicsError | None] = [None] * count
+        prev = np.full(count, np.inf)
+        active = np.arange(count)
+        converged_any: list[np.ndarray] = []
+        for _ in range(MAX_ITERATIONS if count else 0):
+            placements, jacobians = self._evaluate(q, active, perturbation)
+            res, jac, near_pi = self._system(
+                placements, jacobians, None if targets is None else targets[active]
+            )
+            for k in np.flatnonzero(near_pi):
+                self._pinocchio_rows(placements, jacobians, int(k), res, jac)
+            a = jac[:, :, free]
+            norm = np.abs(res).max(axis=1)
+            conv = (norm < TOLERANCE) | ((norm < 1e-11) & (norm >= prev[active]))
+            if conv.any():
+                idx = active[conv]
+                for i in range(len(self.models)):
+                    done_h[i][idx] = placements[i][conv]
+                    done_j[i][idx] = jacobians[i][conv]
+                system[idx] = a[conv]
+                residual[idx] = np.linalg.norm(res[conv], axis=1)
+                converged_any.append(idx)
+            keep = ~conv
+            active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
+            if not active.size:
+                break
+            step = _solve(a, res)
+            big = np.abs(step).max(axis=1)
+            scale = np.where(big > 0.5, 0.5 / np.where(big > 0.5, big, 1.0), 1.0)
+            step *= scale[:, None]
+            sub = q[active]
+            sub[:, free] -= step
+            q[active] = sub
+            prev[active] = norm
+        # problems still active ran out of iterations
+        for k in active:
+            target = targets[k] if targets is not None else None
+            errors[int(k)] = self._failure(q[k], free, target, perturbation, int(k), float(prev[k]), what)
+        solved = np.concatenate(converged_any) if converged_any else np.zeros(0, dtype=int)
+        condition = np.full(count, np.nan)
+        inverse = np.full((count, n_free, rows), np.nan)
+        if solved.size:
+            cond, inv = _condition_bound(system[solved])
+            condition[solved] = cond
+            inverse[solved] = inv
+            for pos, k in enumerate(solved):
+                if rows < n_free or cond[pos] > SINGULAR_CONDITION:
+                    exact = _exact_condition(system[k])
+                    condition[k] = exact
+                    if rows < n_free or exact > SINGULAR_CONDITION:
+                        errors[int(k)] = SingularPoseError(_what(what, int(k), targets), exact)
+        r0 = done_h[0][:, :3, :3]
+        p0 = done_h[0][:, :3, 3]
+        for k in active:  # failed: report the last iterate's platform pose
+            h = self._placement0(q[k], perturbation, int(k))
+            r0[k], p0[k] = h[:3, :3], h[:3, 3]
+        return Solutions(
+            q=q,
+            rotation=r0,
+            translation=p0,
+            p_m=(r0 @ self.p_ref) + p0,
+            residual=residual,
+            condition=condition,
+            jacobians=tuple(done_j),
+            system=system,
+            system_inverse=inverse,
+            errors=tuple(errors),
+            limb_offsets=tuple(int(o) for o in self.offsets),
+            task=targets is not None,
+        )
+
+    def _placement0(
+        self, q: np.ndarray, perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None, k: int
+    ) -> np.ndarray:
+        placements, _ = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
+        return placements[0][0]
+
+    def _failure(
+        self,
+        q: np.ndarray,
+        free: np.ndarray,
+        target: np.ndarray | None,
+        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
+        k: int,
+        norm: float,
+        what: str,
+    ) -> KinematicsError:
+        """The error of a problem that ran out of iterations (``ClosedChain._newton``'s rule).
+
+        ``norm`` is the residual of the last iterate checked; the condition is that of the
+        Jacobian after the last step, as in the per-pose solver.
+        """
+        placements, jacobians = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
+        res, jac, _ = self._system(placements, jacobians, None if target is None else target[None])
+        self._pinocchio_rows(placements, jacobians, 0, res, jac)
+        cond = _exact_condition(jac[0][:, free])
+        label = what if target is not None else f"{what} (problem {k})"
+        if cond > SINGULAR_CONDITION and norm < SINGULAR_RESIDUAL:
+            return SingularPoseError(f"the {label} Jacobian", cond)
+        return ConvergenceError(label, norm, MAX_ITERATIONS)
+
+
+def _what(what: str, k: int, targets: np.ndarray | None) -> str:
+    """The matrix a singular error names; forward problems are numbered (inverse ones have a target)."""
+    return f"the {what} Jacobian" if targets is not None else f"the {what} Jacobian (problem {k})"
+
+
+def _one(
+    perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None, k: int
+) -> list[tuple[list[pin.Model], np.ndarray | None]] | None:
+    """The perturbation of problem ``k`` alone (as problem 0)."""
+    if perturbation is None:
+        return None
+    return [([models[k]], None if attach is None else attach[k : k + 1]) for models, attach in perturbation]
+
+
+def _solve(a: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise."""
+    if a.shape[1] == a.shape[2]:
+        try:
+            return np.linalg.solve(a, res[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:
+            return np.array([_solve_one(ak, rk) for ak, rk in zip(a, res, strict=True)])
+    if a.shape[1] > a.shape[2]:
+        qm, r = np.linalg.qr(a)
+        rhs = np.swapaxes(qm, 1, 2) @ res[:, :, None]
+        try:
+            return np.linalg.solve(r, rhs)[:, :, 0]
+        except np.linalg.LinAlgError:
+            pass
+    return np.array([np.linalg.lstsq(ak, rk, rcond=None)[0] for ak, rk in zip(a, res, strict=True)])
+
+
+def _solve_one(a: np.ndarray, r: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(a, r)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(a, r, rcond=None)[0]
+
+
+def _condition_bound(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``κ_F`` (b,) and the inverse (or pseudo-inverse) (b, free, rows) of stacked Jacobians."""
+    rows, cols = a.shape[1:]
+    if rows == cols:
+        try:
+            inv = np.linalg.inv(a)
+        except np.linalg.LinAlgError:
+            inv = np.array([_inv_or_nan(ak) for ak in a])
+        bound = np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(inv, axis=(1, 2))
+        return np.where(np.isfinite(bound), bound, np.inf), inv
+    if rows > cols:
+        g = np.swapaxes(a, 1, 2) @ a
+        try:
+            g_inv = np.linalg.inv(g)
+        except np.linalg.LinAlgError:
+            g_inv = np.array([_inv_or_nan(gk) for gk in g])
+        bound = np.sqrt(np.linalg.norm(g, axis=(1, 2)) * np.linalg.norm(g_inv, axis=(1, 2)))
+        return np.where(np.isfinite(bound), bound, np.inf), g_inv @ np.swapaxes(a, 1, 2)
+    return np.full(len(a), np.inf), np.full((len(a), cols, rows), np.nan)
+
+
+def _inv_or_nan(a: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return np.full(a.shape[::-1], np.nan)
+
+
+def _exact_condition(a: np.ndarray) -> float:
+    s = np.linalg.svd(a, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
