@@ -36,6 +36,7 @@ from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_s
 from pkmtol.error_model.sweep import Sweep, sweep
 from pkmtol.exceptions import InvalidRequestError, NoiseFloorError
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.drawing import DrawingSettings
 from pkmtol.model.mechanism import Mechanism
 
 #: Exact verification samples of the ``calibrated`` mode (each is a whole simulated calibration; the
@@ -73,6 +74,8 @@ class DesignOptions:
         orientation_target_rad: Δα*, the largest tilt of the tool axis [rad] (None: the
             mechanism's ``[design] orientation_target``, else no orientation target).
         tool_axis: The tool axis in the platform frame (None: ``[design] tool_axis``, else z).
+        drawing: The drawing convention (±t = k·σ or √3·σ), nominal sizes and feature lengths
+            (None: the mechanism's ``[drawing]`` table, else the defaults).
     """
 
     target_m: float | None = None
@@ -91,6 +94,7 @@ class DesignOptions:
     calibration: CalibrationSettings | None = None
     orientation_target_rad: float | None = None
     tool_axis: tuple[float, float, float] | None = None
+    drawing: DrawingSettings | None = None
 
 
 @dataclass(frozen=True)
@@ -150,6 +154,7 @@ class DesignResult:
             taken (docs/theory.md, "No error left untoleranced"); −1 otherwise.
         orientation: The tilt of the tool axis: sensitivities, its own FOSM tolerances when it has
             a target, and its statistics for the verified design.
+        drawing: How the tolerances go on a drawing (:mod:`pkmtol.design.signoff` reports them).
     """
 
     mechanism: Mechanism
@@ -178,6 +183,7 @@ class DesignResult:
     noise_variance_m2: float = 0.0
     fallback_pose: np.ndarray | None = None
     orientation: OrientationDesign | None = None
+    drawing: DrawingSettings = field(default_factory=DrawingSettings)
 
     @property
     def worst_point_m(self) -> np.ndarray:
@@ -518,6 +524,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         noise_variance_m2=noise_var,
         fallback_pose=fallback,
         orientation=od,
+        drawing=opt.drawing or mechanism.extra.get("drawing") or DrawingSettings(),
     )
 
 

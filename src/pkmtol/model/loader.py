@@ -11,6 +11,7 @@ import numpy as np
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
 from pkmtol.model.closed_loop import limbs_from_toml
 from pkmtol.model.dh import DHTable
+from pkmtol.model.drawing import read_drawing
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader, load_urdf
@@ -84,6 +85,10 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         dh = read_dh(lr) if "dh" in ld else None
         model, visual = load_urdf(lname, urdf)
         limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
+    # [drawing]: the ±t convention, nominal sizes, feature lengths (docs/report.md); its keys are
+    # model.drawing.TABLE_KEYS
+    joints = [j for limb in limbs for j in (*limb.joint_names, limb.attach_name)]
+    drawing = read_drawing(r.get("drawing", dict, default={}), path, joints)
     return Mechanism.from_limbs(
         name,
         limbs,
@@ -98,6 +103,7 @@ def load_mechanism(folder: Path | str) -> Mechanism:
             "cost": r.get("cost", dict, default={}),
             "calibration": r.get("calibration", dict, default={}),
             "design": design_extra,
+            "drawing": drawing,
         },
     )
 
