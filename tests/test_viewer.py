@@ -97,7 +97,7 @@ def _transforms(commands, prefix):
 def test_layers_each_have_their_own_path(recorded):
     summary, commands = recorded
     assert summary.root == f"/meshcat/{ROOT}"
-    assert set(summary.layers) == {"robot", "error_spheres", "verification", "reference", "legend"}
+    assert set(summary.layers) == {"robot", "error_spheres", "verification", "reference", "legend", "ground"}
     paths = {c["path"] for c in commands if c["type"] in ("set_object", "set_transform")}
     for layer in summary.layers.values():
         assert any(p.startswith(f"/meshcat/{layer}/") or p == f"/meshcat/{layer}" for p in paths), layer
