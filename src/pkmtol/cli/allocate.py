@@ -8,9 +8,11 @@ from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
-from pkmtol.exceptions import FiguresError
+from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
+from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import check_output_folder, summary_text, write_outputs
+from pkmtol.present.viewer.options import SceneOptions
 from pkmtol.units import parse_angle, parse_length
 
 
@@ -103,6 +105,34 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         help="also write the 3D scene as a self-contained HTML page to FILE",
     )
     p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write the sign-off report to FILE (.html): every table, the figures as inline SVG, "
+        "the 3D scene and the provenance in one self-contained page that loads nothing from the network",
+    )
+    p.add_argument(
+        "--drawing",
+        choices=CONVENTIONS,
+        default=None,
+        help="drawing tolerances: normal, ±t = k·σ (default, k = 3), or uniform, ±t = √3·σ "
+        "(default: [drawing] convention)",
+    )
+    p.add_argument(
+        "--drawing-k",
+        type=float,
+        default=None,
+        metavar="K",
+        help="the k of ±t = k·σ (default: [drawing] k, else 3)",
+    )
+    p.add_argument(
+        "--ellipsoids",
+        action="store_true",
+        help="in the 3D scene (--html, --view, --report), the 1σ ellipsoid of P's error at every grid "
+        "point instead of a sphere",
+    )
     p.set_defaults(run=_run)
 
 
@@ -134,9 +164,15 @@ def _run(args: argparse.Namespace) -> int:
         if args.orientation_target is None
         else parse_angle(args.orientation_target, "--orientation-target"),
         tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
+        drawing=drawing_option(mech.extra.get("drawing"), args.drawing, args.drawing_k),
     )
     out = args.out if args.out is not None else Path("out") / mech.name
     check_output_folder(out)
+    if (
+        args.report is not None
+        and not (args.report.parent if str(args.report.parent) else Path(".")).is_dir()
+    ):
+        raise OutputError(args.report, f"folder {args.report.parent} does not exist; create it first")
     result = allocate(mech, opts)
     print(summary_text(result), end="")
     print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
@@ -144,8 +180,49 @@ def _run(args: argparse.Namespace) -> int:
         print(f"wrote {path}")
     if not args.no_figures:
         _write_figures(result, out)
-    view(result, args.html, args.view)
+    options = scene_options(args.ellipsoids)
+    if args.report is not None:
+        _write_report(result, args.report, options, args.seed)
+    view(result, args.html, args.view, options)
     return 0
+
+
+def drawing_option(
+    table: DrawingSettings | None, convention: str | None, k: float | None
+) -> DrawingSettings | None:
+    """The mechanism's ``[drawing]`` settings with ``--drawing`` / ``--drawing-k`` applied (None: as is).
+
+    Raises:
+        InvalidRequestError: ``--drawing-k`` with the uniform convention, or a k that is not positive.
+    """
+    if convention is None and k is None:
+        return None
+    base = table if table is not None else DrawingSettings()
+    if k is not None and (convention or base.convention) == "uniform":
+        raise InvalidRequestError("--drawing-k sets the k of ±t = k·σ; the uniform convention has none (√3)")
+    try:
+        return base.with_convention(convention, k)
+    except InvalidRequestError as err:
+        raise InvalidRequestError(f"--drawing-k: {err}") from err
+
+
+def scene_options(ellipsoids: bool) -> SceneOptions | None:
+    """The 3D scene's options for ``--ellipsoids`` (None: the defaults)."""
+    return SceneOptions(glyph="ellipsoid") if ellipsoids else None
+
+
+def _write_report(result: DesignResult, path: Path, options: SceneOptions | None, seed: int) -> None:
+    """The sign-off report: rendered whole, then written atomically."""
+    from pkmtol.present.html_report import write_report
+    from pkmtol.present.provenance import provenance
+
+    report = write_report(result, path, provenance(result.mechanism, seed, sys.argv), options)
+    if report.figures_missing:
+        print(f"pkmtol: warning: report without figures: {report.figures_missing}", file=sys.stderr)
+    print(
+        f"wrote {path} ({len(report.data)} bytes: {len(report.sections)} sections, "
+        f"{len(report.figures)} figures)"
+    )
 
 
 def _write_figures(result: DesignResult, out: Path) -> None:
@@ -159,13 +236,13 @@ def _write_figures(result: DesignResult, out: Path) -> None:
         print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
 
 
-def view(result: DesignResult, html: Path | None, live: bool) -> None:
+def view(result: DesignResult, html: Path | None, live: bool, options: SceneOptions | None = None) -> None:
     """Write the 3D page to ``html`` (if given), then serve the scene live (if ``live``)."""
     from pkmtol.present.viewer.export import export_html, show
 
     if html is not None:
-        info = export_html(result, html)
+        info = export_html(result, html, options)
         spheres = info.scene.spheres
         print(f"wrote {info.path} ({info.bytes} bytes, {spheres.count if spheres else 0} error spheres)")
     if live:
-        show(result)
+        show(result, options)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pkmtol.cli.allocate import view
+from pkmtol.cli.allocate import scene_options, view
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import check_output_folder
@@ -26,6 +26,11 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.add_argument(
+        "--ellipsoids",
+        action="store_true",
+        help="the 1σ ellipsoid of P's error at every grid point instead of a sphere",
+    )
     p.set_defaults(run=_run)
 
 
@@ -41,5 +46,5 @@ def _run(args: argparse.Namespace) -> int:
         verification_poses=min(2_000, args.samples),
     )
     result = allocate(mech, opts)
-    view(result, args.html, args.html is None)
+    view(result, args.html, args.html is None, scene_options(args.ellipsoids))
     return 0
