@@ -28,7 +28,7 @@ import pinocchio as pin
 from pkmtol.model.loader import load_mechanism
 
 
-def _origin(joint: ET.Element) -> pin.SE3:
+def urdf_origin(joint: ET.Element) -> pin.SE3:
     o = joint.find("origin")
     xyz = np.zeros(3) if o is None else np.array([float(x) for x in o.get("xyz", "0 0 0").split()])
     rpy = np.zeros(3) if o is None else np.array([float(x) for x in o.get("rpy", "0 0 0").split()])
@@ -81,7 +81,7 @@ def tree_urdf(folder: Path) -> tuple[str, list[tuple[str, str]], list[str], dict
             # the attachment's rotation, A is a pure translation on the platform
             origin = attach.find("origin")
             rpy = "0 0 0" if origin is None else origin.get("rpy", "0 0 0")
-            placement = _origin(attach)
+            placement = urdf_origin(attach)
             joints.append(_fixed(f"{b}_joint", str(last), b, rpy=rpy))
             joints.append(
                 _fixed(f"{a}_joint", platform, a, xyz=_fmt(-placement.rotation.T @ placement.translation))
@@ -96,13 +96,13 @@ def tree_urdf(folder: Path) -> tuple[str, list[tuple[str, str]], list[str], dict
     return text, loops, motors, home
 
 
-def _toml_value(v: object) -> str:
+def toml_value(v: object) -> str:
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, list | tuple):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
     return repr(v)
 
 
@@ -115,13 +115,13 @@ def generate(folder: Path) -> dict[str, str]:
     lines = [
         f"# {mech.name} written as one closed-loop URDF tree (robot.urdf) with its sidecar (robot.yaml);",
         f"# generated from {folder.name}/ by scripts/limbs_to_closed_loop.py; do not edit.",
-        f"name = {_toml_value(mech.name + '_closed')}",
-        f"description = {_toml_value(doc.get('description', ''))}",
+        f"name = {toml_value(mech.name + '_closed')}",
+        f"description = {toml_value(doc.get('description', ''))}",
         "",
         "[closed_loop]",
         'urdf = "robot.urdf"',
         'sidecar = "robot.yaml"',
-        f"limbs = {_toml_value([lb.name for lb in mech.limbs])}",
+        f"limbs = {toml_value([lb.name for lb in mech.limbs])}",
         "",
         "[closed_loop.home]  # joint values [rad or m] where every loop closes; others are 0",
     ]
@@ -129,7 +129,7 @@ def generate(folder: Path) -> dict[str, str]:
     for table in ("reference_point", "task", "task_space", "design", "cost"):
         if table in doc:
             lines += ["", f"[{table}]"]
-            lines += [f"{k} = {_toml_value(v)}" for k, v in doc[table].items() if not isinstance(v, dict)]
+            lines += [f"{k} = {toml_value(v)}" for k, v in doc[table].items() if not isinstance(v, dict)]
     return {"robot.urdf": urdf, "robot.yaml": yaml, "mechanism.toml": "\n".join(lines) + "\n"}
 
 

@@ -250,6 +250,50 @@ class NoLoopError(ClosedLoopError):
         super().__init__(path, "closed_loop", problem)
 
 
+class PointLoopError(ClosedLoopError):
+    """A loop closes on a point only (a URDF ``'3d'`` loop, an MJCF ``<connect>``).
+
+    pkmtol's limbs close on the platform's full pose (6D); write the ball joint at the closure as
+    three revolute joints ending in the limb-side frame and close the loop in 6D.
+    """
+
+
+# --- MJCF import ---------------------------------------------------------------------------------
+
+
+class MJCFError(ClosedLoopError):
+    """An MJCF file is missing, malformed, unreadable by Pinocchio, or uses what pkmtol cannot take.
+
+    Attributes:
+        path: The MJCF file.
+        culprit: The offending element, body, joint, actuator or key.
+    """
+
+
+class LostElementError(MJCFError):
+    """Pinocchio's MJCF reader would drop bodies or joints of the file (they would silently vanish).
+
+    Attributes:
+        lost: Names of the bodies and joints that would be lost.
+    """
+
+    def __init__(self, path: Path | str, culprit: str, lost: Sequence[str], problem: str) -> None:
+        self.lost = tuple(lost)
+        super().__init__(path, culprit, problem)
+
+
+class MultiDofJointError(MJCFError):
+    """A ``ball`` or ``free`` joint, or a body with several joints (Pinocchio makes them one composite)."""
+
+
+class UnsupportedEqualityError(MJCFError):
+    """An ``<equality>`` element pkmtol cannot turn into a loop (``joint``, ``tendon``, ``distance``, ...)."""
+
+
+class TendonError(MJCFError):
+    """The file has tendons (or an actuator on a tendon): pkmtol's mechanisms have none."""
+
+
 # --- presentation -------------------------------------------------------------------------------
 
 

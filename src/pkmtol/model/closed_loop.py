@@ -47,12 +47,12 @@ from pathlib import Path
 import pinocchio as pin
 
 from pkmtol.exceptions import ClosedLoopError
-from pkmtol.model.limb import Limb, make_limb
+from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader
 from pkmtol.model.sidecar import Sidecar, default_sidecar, read_sidecar
 from pkmtol.model.taskspace import TaskSpace
-from pkmtol.model.tree_cut import MOTOR_MARK, TreeCut, cut_tree, limb_model, limb_visual, load_tree
+from pkmtol.model.tree_cut import MOTOR_MARK, TreeCut, cut_limbs, cut_tree, load_tree
 
 
 def closed_loop_limbs(
@@ -118,30 +118,7 @@ def closed_loop_limbs(
             tree = pin.buildReducedModel(tree, locked, q0)
     cut = cut_tree(tree, side, platform_link, limb_names, urdf)
     cut = dataclasses.replace(cut, locked=tuple(side.joint_types))
-    home = dict(home or {})
-    names = set(tree.names[1:])
-    for jname in home:
-        if jname not in names:
-            raise ClosedLoopError(
-                urdf,
-                jname,
-                f"home names joint '{jname}', which is not a joint of the tree "
-                f"(joints: {', '.join(tree.names[1:])})",
-            )
-    limbs = []
-    for i, lc in enumerate(cut.limbs):
-        model, jmap, fmap = limb_model(tree, cut, lc)
-        q_home = [float(home.get(n, 0.0)) for n in lc.joints]
-        limb = make_limb(
-            lc.name,
-            model,
-            list(lc.actuated),
-            cut.platform_link,
-            q_home,
-            urdf,
-            visual_model=limb_visual(visual, jmap, fmap, with_base=i == 0),
-        )
-        limbs.append(dataclasses.replace(limb, attach_name=lc.attach_name))
+    limbs = cut_limbs(tree, visual, cut, home, urdf)
     return limbs, cut
 
 

@@ -1,4 +1,4 @@
-"""``load_mechanism``: a robot folder (``mechanism.toml`` and its limb URDFs) to a :class:`Mechanism`."""
+"""``load_mechanism``: a robot folder (``mechanism.toml`` and its limbs) to a :class:`Mechanism`."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
-from pkmtol.model.closed_loop import limbs_from_toml
+from pkmtol.model import closed_loop, mjcf
 from pkmtol.model.dh import DHTable
 from pkmtol.model.drawing import read_drawing
 from pkmtol.model.limb import make_limb
@@ -20,13 +20,18 @@ from pkmtol.units import parse_angle, parse_length
 
 
 def load_mechanism(folder: Path | str) -> Mechanism:
-    """Load ``<folder>/mechanism.toml`` and its limb URDFs.
+    """Load ``<folder>/mechanism.toml`` and its limbs.
+
+    The limbs come from one of: ``[[limbs]]`` tables (one URDF each), a ``[closed_loop]`` table
+    (one URDF tree with closure frames, docs/closed-loop.md) or an ``[mjcf]`` table (one MJCF file
+    whose loops are ``<weld>`` equalities, docs/closed-loop.md, "MJCF").
 
     Raises:
         MechanismFormatError: the folder has no mechanism.toml, or a key is missing or mistyped.
         URDFError: a limb URDF is missing, malformed or unusable.
         UnknownJointError: an actuated joint is not in its limb.
         PlatformMismatchError: the limbs' platform frames do not coincide at ``home``.
+        ClosedLoopError, MJCFError (and subclasses): a tree or MJCF file pkmtol cannot cut into limbs.
     """
     folder = Path(folder)
     path = folder / "mechanism.toml"
@@ -69,13 +74,23 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-12:
             r.fail("design.tool_axis", f"expected a non-zero [x, y, z] (platform frame), got {axis.tolist()}")
         design_extra["tool_axis"] = tuple(float(x) for x in axis)
+    forms = [k for k in ("limbs", "closed_loop", "mjcf") if k in doc]
+    if len(forms) > 1:
+        r.fail(
+            forms[1], f"give the limbs one way: [[limbs]], [closed_loop] or [mjcf], not {' and '.join(forms)}"
+        )
     limbs = []
     if "closed_loop" in doc:
         # one URDF tree with closure frame pairs (docs/closed-loop.md)
-        limbs = limbs_from_toml(folder, r)
-    limbs_doc = r.get("limbs", list) if "closed_loop" not in doc else []
-    if "closed_loop" not in doc and len(limbs_doc) < 2:
-        r.fail("limbs", "a parallel mechanism needs at least two [[limbs]]")
+        limbs = closed_loop.limbs_from_toml(folder, r)
+    elif "mjcf" in doc:
+        # one MJCF file whose loops are <weld> equalities (docs/closed-loop.md, "MJCF")
+        limbs = mjcf.limbs_from_toml(folder, r)
+    limbs_doc = r.get("limbs", list) if not forms or forms == ["limbs"] else []
+    if not limbs and len(limbs_doc) < 2:
+        r.fail(
+            "limbs", "a parallel mechanism needs at least two [[limbs]] (or a [closed_loop] or [mjcf] table)"
+        )
     for i, ld in enumerate(limbs_doc):
         lr = TomlReader(path, ld, prefix=f"limbs[{i}].")
         lname = lr.get("name", str)

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.exceptions import PlatformMismatchError, URDFError
+from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.taskspace import TaskSpace
 
@@ -70,6 +71,16 @@ class Mechanism:
             if limb.name == name:
                 return limb
         raise KeyError(f"no limb '{name}' (limbs: {', '.join(x.name for x in self.limbs)})")
+
+    def constraint_models(self, models: Sequence[pin.Model] | None = None) -> ConstrainedModel:
+        """The mechanism as one ``pin.Model`` plus a ``FrameAnchorConstraintModel`` per loop (Pinocchio 4).
+
+        Args:
+            models: Replacement limb models (e.g. perturbed); default: the limbs'.
+
+        See :func:`pkmtol.model.constraints.constraint_models`.
+        """
+        return constraint_models(self, models)
 
     @classmethod
     def from_models(

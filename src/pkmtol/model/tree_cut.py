@@ -5,16 +5,25 @@ See :mod:`pkmtol.model.closed_loop` for the convention and the rules of the cut.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
 
-from pkmtol.exceptions import ClosedLoopError, ClosureFrameError, NoLoopError, UnknownMotorError, URDFError
+from pkmtol.exceptions import (
+    ClosedLoopError,
+    ClosureFrameError,
+    NoLoopError,
+    PointLoopError,
+    UnknownMotorError,
+    URDFError,
+)
+from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.sidecar import Sidecar
 
 #: Closure frame names of the convention: ``closedloop<k>_A`` / ``closedloop<k>_B``.
@@ -101,6 +110,9 @@ def cut_tree(
     platform_link: str | None = None,
     limb_names: Sequence[str] | None = None,
     source: Path | str | None = None,
+    *,
+    loop_names: Sequence[str] | None = None,
+    stray_advice: str = "lock them with joint_type FIXED",
 ) -> TreeCut:
     """Decide the platform and the limbs of a tree with closure frame pairs.
 
@@ -109,14 +121,21 @@ def cut_tree(
         sidecar: Loops and motors.
         platform_link: The platform link; default: the link holding one side of every loop.
         limb_names: Names, reference limb first then one per loop (default ``limb1`` ...).
-        source: The URDF file, for messages.
+        source: The file the tree comes from, for messages.
+        loop_names: One name per loop, for the loop limbs' platform-attachment parameters, when
+            the source format names its loops itself (MJCF ``<weld name=...>``). The frame-name
+            convention ``closedloop<k>_A/_B`` is then not enforced. Default: the loop name is
+            the frames' common stem (``closedloop<k>``), else ``loop<k>``.
+        stray_advice: What the message of a moving joint on no limb tells the user to do
+            besides closing its loop (the fix depends on the source format).
 
     Raises:
         NoLoopError: no loop is listed and no closure frames are in the tree.
         ClosureFrameError: a listed frame is missing, or a closure frame has no partner.
         UnknownMotorError: a motor joint is not in the tree.
+        PointLoopError: a ``'3d'`` loop.
         ClosedLoopError: the loops do not meet on one platform, limbs share joints, a loop
-            closes on the base, a 3D loop, a motor on no limb, or a moving joint on no limb.
+            closes on the base, a motor on no limb, or a moving joint on no limb.
     """
     src = Path(source) if source is not None else Path("<tree>")
     loops = list(sidecar.loops) or _convention_pairs(model, src)
@@ -127,11 +146,13 @@ def cut_tree(
             "sidecar lists no closed_loop pairs: this is a serial robot, not a parallel "
             "mechanism; add the closure frames and list them under closed_loop",
         )
-    _check_partners(model, loops, src, sidecar.path)
+    _check_partners(model, loops, src, sidecar.path, convention=loop_names is None)
+    if loop_names is not None and len(loop_names) != len(loops):
+        raise ClosedLoopError(src, "loops", f"{len(loop_names)} loop names for {len(loops)} loops")
     types = list(sidecar.types) or ["6d"] * len(loops)
     for k, t in enumerate(types):
         if t != "6d":
-            raise ClosedLoopError(
+            raise PointLoopError(
                 src,
                 loops[k][0],
                 f"loop {k + 1} ({loops[k][0]} ↔ {loops[k][1]}) is a {t.upper()} closure; pkmtol closes "
@@ -238,7 +259,7 @@ def cut_tree(
             src,
             stray[0],
             f"moving joint(s) {', '.join(stray)} lie on no limb (neither between the base and "
-            "a closure nor beyond the platform); close their loop, or lock them with joint_type FIXED",
+            f"a closure nor beyond the platform); close their loop, or {stray_advice}",
         )
 
     joint_names = list(model.names[1:])
@@ -261,7 +282,7 @@ def cut_tree(
         if k == 0:
             attach = _reference_attach(model, plat)
         else:
-            attach = _loop_name(loops[k - 1], k)
+            attach = loop_names[k - 1] if loop_names is not None else _loop_name(loops[k - 1], k)
             if attach in {model.names[j] for j in path}:
                 attach += "_closure"
         limbs.append(
@@ -303,7 +324,9 @@ def _convention_pairs(model: pin.Model, src: Path) -> list[tuple[str, str]]:
     return pairs
 
 
-def _check_partners(model: pin.Model, loops: list[tuple[str, str]], src: Path, sidecar: Path | None) -> None:
+def _check_partners(
+    model: pin.Model, loops: list[tuple[str, str]], src: Path, sidecar: Path | None, convention: bool = True
+) -> None:
     listed = {name for pair in loops for name in pair}
     present = sorted(f.name for f in model.frames if CLOSURE_FRAME.match(f.name))
     for k, (a, b) in enumerate(loops, 1):
@@ -316,6 +339,8 @@ def _check_partners(model: pin.Model, loops: list[tuple[str, str]], src: Path, s
                     f"(closure frames present: {', '.join(present) or 'none'}); add a link of that name "
                     "or fix the sidecar",
                 )
+    if not convention:
+        return
     for name in present:
         m = CLOSURE_FRAME.match(name)
         assert m is not None
@@ -454,3 +479,51 @@ def limb_visual(visual: Any, jmap: dict[int, int], fmap: dict[int, int], with_ba
         g.parentFrame = fmap.get(go.parentFrame, 0)
         gm.addGeometryObject(g)
     return gm
+
+
+def cut_limbs(
+    tree: pin.Model,
+    visual: Any,
+    cut: TreeCut,
+    home: Mapping[str, float] | None,
+    source: Path | str,
+) -> list[Limb]:
+    """The :class:`~pkmtol.model.limb.Limb` objects of a cut tree (reference limb first).
+
+    Args:
+        tree: The tree the cut was made on.
+        visual: The tree's visual ``pin.GeometryModel`` (or None).
+        cut: How the tree was cut (:func:`cut_tree`).
+        home: Joint values [rad or m] by joint name at which every loop closes; others are 0.
+        source: The file the tree comes from (each limb's ``urdf_path``, and messages).
+
+    Raises:
+        ClosedLoopError: ``home`` names a joint that is not in the tree.
+        URDFError: a limb is not a serial chain of 1-DOF joints (:func:`~pkmtol.model.limb.make_limb`).
+    """
+    source = Path(source)
+    home = dict(home or {})
+    names = set(tree.names[1:])
+    for jname in home:
+        if jname not in names:
+            raise ClosedLoopError(
+                source,
+                jname,
+                f"home names joint '{jname}', which is not a joint of the tree "
+                f"(joints: {', '.join(tree.names[1:])})",
+            )
+    limbs = []
+    for i, lc in enumerate(cut.limbs):
+        model, jmap, fmap = limb_model(tree, cut, lc)
+        q_home = [float(home.get(n, 0.0)) for n in lc.joints]
+        limb = make_limb(
+            lc.name,
+            model,
+            list(lc.actuated),
+            cut.platform_link,
+            q_home,
+            source,
+            visual_model=limb_visual(visual, jmap, fmap, with_base=i == 0),
+        )
+        limbs.append(dataclasses.replace(limb, attach_name=lc.attach_name))
+    return limbs
