@@ -13,9 +13,9 @@ range's limits in mm (``√(1·3)`` for the first range):
 * ``500 < D ≤ 3150 mm``: ``I = 0.004 D + 2.1`` µm; IT1 … IT4 are ``2, 2.7, 3.7, 5`` × I and IT5 …
   IT18 the same multiples of I as above.
 
-The table's values are the formula's rounded by the standard's rules (within 8.4 % for IT5 …
-IT18 above 3 mm and IT1 … IT4 above 500 mm, tested). The first range (≤ 3 mm) and IT1 … IT4 up to
-500 mm were fixed by the standard outside these formulas and are taken from the table only.
+The table's values are the formula's rounded by the standard's rules: within 8.4 % of the table
+value for IT5 … IT18 above 3 mm and IT1 … IT4 above 500 mm (tested). The first range (≤ 3 mm) and
+IT1 … IT4 up to 500 mm were fixed by the standard outside these formulas: table only.
 """
 
 from __future__ import annotations
