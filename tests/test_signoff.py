@@ -97,13 +97,22 @@ def test_drawing_callouts_of_the_seed_robot(ideal):
     assert {n for n, d in by.items() if d.unit == "m"} == {n for n, d in by.items() if d.kind == "position"}
     assert by["δa_{1,4}"].zone_m == pytest.approx(2 * by["δa_{1,4}"].tolerance)
     phi = by["δφ_{1,4}"]  # the twist between the base z and limb4_u1's axis, nominally 90°
-    assert (phi.kind, phi.feature, phi.datum) == ("perpendicularity", "limb4_u1", "base")
+    assert (phi.kind, phi.feature, phi.datum, phi.about_datum) == (
+        "perpendicularity",
+        "limb4_u1",
+        "base z",
+        False,
+    )
+    theta = by["δθ_{1,4}"]  # a rotation about the base z: the axis swings about the datum
+    assert (theta.kind, theta.about_datum) == ("angularity", True)
+    assert theta.zone_m == pytest.approx(0.1 * math.tan(theta.tolerance))
     assert phi.nominal_angle_rad == pytest.approx(math.pi / 2)
     assert phi.zone_m == pytest.approx(0.1 * math.tan(phi.tolerance))
     assert by["δφ_{4,4}"].kind == "parallelism" and by["δθ_{e,4}"].kind == "angular position"
     rows = drawing_rows(ideal)
     assert rows[0][4] == "callout" and len(rows) == 15
-    assert any("perpendicularity of limb4_u1's axis to base" in r[-1] for r in rows)
+    assert any("perpendicularity of limb4_u1's axis to base z" in r[-1] for r in rows)
+    assert any("angularity of limb4_u1's axis about base z's axis" in r[-1] for r in rows)
 
 
 def test_drawing_convention_and_feature_lengths(mech):

@@ -9,13 +9,16 @@ lives (its joint origin, from the parameter set's selection) and what it moves:
   grade of the zone 2t (:func:`pkmtol.design.iso286.it_grade`);
 * a length error along a dimension of nominal 0 (axes that intersect, a zero offset): a
   **position** tolerance, zone 2t;
-* an **angle** error that tilts a joint's axis (the feature) relative to its parent joint's axis
-  (the datum; the base z axis for a limb's first joint, the last joint's axis for the platform
-  attachment, whose feature is the tool axis): a **perpendicularity** (nominal angle within 10°
-  of 90°), **parallelism** (within 10° of 0°) or **angularity** zone ``L·tan(δ)`` over the feature
-  length L (``[drawing] feature_length``, per joint in ``[drawing.feature_lengths]``, default
-  100 mm), δ the tilt ±t makes;
-* an angle about the axis itself: an **angular position** ±t (it tilts nothing);
+* an **angle** error that changes the angle between a joint's axis (the feature) and its parent
+  joint's axis (the datum; the base z axis for a limb's first joint, the last joint's axis for the
+  platform attachment, whose feature is the tool axis) — a rotation about their common normal,
+  the D–H δφ: a **perpendicularity** (nominal angle within 10° of 90°), **parallelism** (within
+  10° of 0°) or **angularity** zone ``L·tan(δ)`` over the feature length L (``[drawing]
+  feature_length``, per joint in ``[drawing.feature_lengths]``, default 100 mm), δ the tilt ±t
+  makes;
+* an angle that swings the feature about the datum's axis (the D–H δθ of a link): an
+  **angularity** zone about the datum, which a secondary datum fixes;
+* an angle about the feature's own axis: an **angular position** ±t (it tilts nothing);
 * a joint's zero offset: **joint zero** ±t, set at assembly or by calibration (no feature).
 """
 
@@ -63,7 +66,9 @@ class DrawingTolerance:
         tolerance: ±t = factor · σ_i.
         kind: One of :data:`KINDS`.
         feature: The joint (or platform attachment) whose geometry the error changes.
-        datum: The datum feature of an orientation zone (a joint, ``base``), else None.
+        datum: The datum feature of an orientation zone (a joint, ``base z``), else None.
+        about_datum: True when the error swings the feature about the datum's axis (an
+            angularity that a secondary datum fixes), False when it changes their angle.
         nominal_m: The nominal size of a length error [m] (0 for a position), else None.
         nominal_angle_rad: The nominal angle between feature and datum axes, else None.
         zone_m: The zone width: 2t for size/position, ``L·tan δ`` for an orientation [m]; None
@@ -80,6 +85,7 @@ class DrawingTolerance:
     kind: str
     feature: str
     datum: str | None = None
+    about_datum: bool = False
     nominal_m: float | None = None
     nominal_angle_rad: float | None = None
     zone_m: float | None = None
@@ -101,8 +107,13 @@ class DrawingTolerance:
             return f"position of {self.feature}, zone {1e3 * self.zone_m:.4g} mm (nominal 0, {tol})"
         if self.kind in ("perpendicularity", "parallelism", "angularity"):
             assert self.zone_m is not None and self.feature_length_m is not None
+            to = (
+                f"about {self.datum}'s axis (to a secondary datum)"
+                if self.about_datum
+                else f"to {self.datum}"
+            )
             return (
-                f"{self.kind} of {self.feature}'s axis to {self.datum}: {1e3 * self.zone_m:.4g} mm over "
+                f"{self.kind} of {self.feature}'s axis {to}: {1e3 * self.zone_m:.4g} mm over "
                 f"L = {1e3 * self.feature_length_m:.4g} mm ({tol})"
             )
         if self.kind == "angular position":
@@ -129,7 +140,7 @@ def _origin(limb: Limb, o: int, tool_axis: np.ndarray) -> tuple[pin.SE3, np.ndar
         placement = limb.model.frames[limb.platform_frame].placement
         feature_axis, feature = tool_axis, limb.attach_name
     if o == 0:
-        parent_axis, datum = np.array([0.0, 0.0, 1.0]), "base"
+        parent_axis, datum = np.array([0.0, 0.0, 1.0]), "base z"
     else:
         parent_axis, datum = _joint_axis(limb, o), limb.joint_names[o - 1]
     return placement, feature_axis, placement.rotation.T @ parent_axis, feature, datum
@@ -200,12 +211,30 @@ def _callout(
         fits = 1e3 * nominal <= MAX_SIZE_MM
         it = it_grade(2e6 * t, 1e3 * nominal) if fits else None
         return {"kind": "size", "feature": feature, "nominal_m": nominal, "zone_m": 2 * t, "it": it}
-    # the axis tilts by |ŵ × a| per unit of the error: 1 for a rotation about a normal to the axis
-    tilt = float(np.linalg.norm(np.cross(w / np.linalg.norm(w), feature_axis)))
-    if tilt < math.sin(RELATION_BAND_RAD):
-        return {"kind": "angular position", "feature": feature}
+    # split the rotation in the feature's own frame: about its axis (tilts nothing), about the
+    # common normal of feature and datum (changes the angle between them), and about the third
+    # direction (swings the feature about the datum, a direction only a secondary datum fixes)
+    w_hat = w / np.linalg.norm(w)
     angle = math.acos(min(1.0, abs(float(feature_axis @ datum_axis))))
-    if angle >= math.pi / 2 - RELATION_BAND_RAD:
+    normal = np.cross(feature_axis, datum_axis)
+    if np.linalg.norm(normal) < math.sin(RELATION_BAND_RAD):  # parallel axes: every tilt counts
+        parts = {
+            "own": abs(float(w_hat @ feature_axis)),
+            "angle": float(np.linalg.norm(np.cross(w_hat, feature_axis))),
+        }
+    else:
+        n = normal / np.linalg.norm(normal)
+        parts = {
+            "own": abs(float(w_hat @ feature_axis)),
+            "angle": abs(float(w_hat @ n)),
+            "swing": abs(float(w_hat @ np.cross(feature_axis, n))),
+        }
+    which = max(parts, key=lambda k: parts[k])
+    if which == "own":
+        return {"kind": "angular position", "feature": feature}
+    if which == "swing":
+        kind = "angularity"
+    elif angle >= math.pi / 2 - RELATION_BAND_RAD:
         kind = "perpendicularity"
     elif angle <= RELATION_BAND_RAD:
         kind = "parallelism"
@@ -216,9 +245,11 @@ def _callout(
         "kind": kind,
         "feature": feature,
         "datum": datum,
+        "about_datum": which == "swing",
         "nominal_angle_rad": angle,
         "feature_length_m": length,
-        "zone_m": length * math.tan(tilt * t),
+        # the axis tilts by that component of the rotation: over L its end moves L·tan(it · t)
+        "zone_m": length * math.tan(parts[which] * t),
     }
 
 

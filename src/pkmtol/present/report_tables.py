@@ -326,6 +326,7 @@ def _drawing_json(d: Any) -> dict[str, Any]:
         "kind": d.kind,
         "feature": d.feature,
         "datum": d.datum,
+        "about_datum": d.about_datum,
         "nominal_m": d.nominal_m,
         "nominal_angle_rad": d.nominal_angle_rad,
         "zone_m": d.zone_m,
