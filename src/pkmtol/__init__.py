@@ -19,6 +19,7 @@ from pkmtol.design.job import DesignOptions, DesignResult, Traditional, allocate
 from pkmtol.design.methods import MethodDesign, method_design_for
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
 from pkmtol.design.reliability import exact_reliability, reliability_fosm
+from pkmtol.design.signoff import SignOff, sign_off
 from pkmtol.design.verification import FailureStats, Verification, verify
 from pkmtol.error_model.accuracy import norm_moments, sensitivities
 from pkmtol.error_model.parameters import ErrorParameter, ParameterSet, default_set, parameter_set
@@ -54,11 +55,13 @@ from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.kinematics.perturbation import perturbed_limb_models
 from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
+from pkmtol.model.drawing import DrawingSettings
 from pkmtol.model.limb import Limb
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
 from pkmtol.model.taskspace import TaskSpace
+from pkmtol.present.html_report import write_report
 from pkmtol.present.tables import summary_text, to_json, write_outputs
 
 __all__ = [
@@ -69,6 +72,7 @@ __all__ = [
     "ConvergenceError",
     "DesignOptions",
     "DesignResult",
+    "DrawingSettings",
     "ErrorParameter",
     "ErrorTable",
     "FailureStats",
@@ -92,6 +96,7 @@ __all__ = [
     "Pose",
     "PoseSearch",
     "Separation",
+    "SignOff",
     "SingularPoseError",
     "Sweep",
     "TaskSpace",
@@ -122,10 +127,12 @@ __all__ = [
     "search_sensitive_pose",
     "sensitivities",
     "separate",
+    "sign_off",
     "summary_text",
     "sweep",
     "to_json",
     "verify",
     "write_outputs",
+    "write_report",
 ]
 __version__ = "0.1.0"

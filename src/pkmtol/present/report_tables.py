@@ -222,9 +222,9 @@ def signoff_text(
     top = np.argsort(-c.worst)[:3]
     out = [
         heading("Contributions to E[Δλ²] (percent contribution, Pareto)"),
-        f"design: {design}; design point = grid pose {so.design_index}; the shares sum to 100 % there "
-        "(FOSM's equal effect makes them equal). 'worst': each error's largest share over the task-space "
-        "grid (its pose); largest: "
+        f"design: {design}; design point = grid pose {so.design_index}; the shares sum to 100 % there"
+        + (" (equal: the equal-effect shape of Eq. 19)" if _equal(c.at_design) else "")
+        + ". 'worst': each error's largest share over the task-space grid (its pose); largest: "
         + ", ".join(f"{r.pset.names[c.columns[k]]} {percent(c.worst[k])} % ({c.worst_pose[k]})" for k in top),
         "",
         table(contribution_rows(r)),
@@ -257,6 +257,12 @@ def signoff_text(
         table(drawing_rows(r)),
     ]
     return out
+
+
+def _equal(shares: np.ndarray) -> bool:
+    """Whether the non-zero shares are all equal (to 1e-6)."""
+    nz = shares[shares > 0]
+    return bool(nz.size > 1 and np.allclose(nz, nz.max(), rtol=1e-6))
 
 
 def signoff_json(r: DesignResult) -> dict[str, Any]:
