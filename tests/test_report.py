@@ -225,6 +225,8 @@ def test_allocate_report_option(tmp_path, capsys):
     assert f"wrote {rep} ({rep.stat().st_size} bytes: 9 sections, 4 figures)" in text
     page = rep.read_text(encoding="utf-8")
     assert "<td>seed</td><td><code>3</code></td>" in page and "±t = 2σ" in page
+    command = html.escape(f"pkmtol allocate {ROBOT} --out {out} --report {rep} --drawing-k 2 --no-figures")
+    assert command in page  # the command as typed, not the test runner's
     doc = json.loads((out / "allocation.json").read_text(encoding="utf-8"))
     assert doc["signoff"]["convention"] == {
         "kind": "normal",

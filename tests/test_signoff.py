@@ -252,3 +252,14 @@ def test_drawing_table_is_read_and_checked(tmp_path, mech):
     )
     with pytest.raises(MechanismFormatError, match="no such error parameter"):
         sign_off(allocate(load_mechanism(folder), DesignOptions(**FAST)))
+
+
+def test_drawing_keys_are_registered_with_the_key_registry():
+    """Once the mechanism key registry exists (model/keys.py), [drawing] and its keys are in it."""
+    keys = pytest.importorskip("pkmtol.model.keys")
+    from pkmtol.model.drawing import TABLE_KEYS
+
+    assert "drawing" in keys.KNOWN_KEYS[""]
+    assert keys.KNOWN_KEYS["drawing"] == frozenset(TABLE_KEYS)
+    assert keys.KNOWN_KEYS["drawing.feature_lengths"] == keys.ANY
+    assert keys.KNOWN_KEYS["drawing.nominals"] == keys.ANY

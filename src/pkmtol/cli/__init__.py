@@ -35,6 +35,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     """
     args = _parser().parse_args(argv)
+    args.argv = ["pkmtol", *(sys.argv[1:] if argv is None else argv)]  # the report's provenance
     try:
         return int(args.run(args))
     except PkmtolError as err:

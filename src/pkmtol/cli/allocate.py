@@ -182,7 +182,7 @@ def _run(args: argparse.Namespace) -> int:
         _write_figures(result, out)
     options = scene_options(args.ellipsoids)
     if args.report is not None:
-        _write_report(result, args.report, options, args.seed)
+        _write_report(result, args.report, options, args.seed, getattr(args, "argv", sys.argv))
     view(result, args.html, args.view, options)
     return 0
 
@@ -211,12 +211,14 @@ def scene_options(ellipsoids: bool) -> SceneOptions | None:
     return SceneOptions(glyph="ellipsoid") if ellipsoids else None
 
 
-def _write_report(result: DesignResult, path: Path, options: SceneOptions | None, seed: int) -> None:
-    """The sign-off report: rendered whole, then written atomically."""
+def _write_report(
+    result: DesignResult, path: Path, options: SceneOptions | None, seed: int, argv: list[str]
+) -> None:
+    """The sign-off report (``argv``: the command's words, for its provenance), written whole."""
     from pkmtol.present.html_report import write_report
     from pkmtol.present.provenance import provenance
 
-    report = write_report(result, path, provenance(result.mechanism, seed, sys.argv), options)
+    report = write_report(result, path, provenance(result.mechanism, seed, argv), options)
     if report.figures_missing:
         print(f"pkmtol: warning: report without figures: {report.figures_missing}", file=sys.stderr)
     print(

@@ -101,7 +101,9 @@ def load_mechanism(folder: Path | str) -> Mechanism:
         model, visual = load_urdf(lname, urdf)
         limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
     # [drawing]: the ±t convention, nominal sizes, feature lengths (docs/report.md); its keys are
-    # model.drawing.TABLE_KEYS
+    # model.drawing.TABLE_KEYS (register them in the key registry, model/keys.py, once it exists:
+    # "drawing" at the top level, "drawing" = TABLE_KEYS, "drawing.feature_lengths" and
+    # "drawing.nominals" = free names)
     joints = [j for limb in limbs for j in (*limb.joint_names, limb.attach_name)]
     drawing = read_drawing(r.get("drawing", dict, default={}), path, joints)
     return Mechanism.from_limbs(
