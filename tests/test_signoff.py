@@ -110,7 +110,8 @@ def test_drawing_callouts_of_the_seed_robot(ideal):
     assert phi.zone_m == pytest.approx(0.1 * math.tan(phi.tolerance))
     assert by["δφ_{4,4}"].kind == "parallelism" and by["δθ_{e,4}"].kind == "angular position"
     rows = drawing_rows(ideal)
-    assert rows[0][4] == "callout" and len(rows) == 15
+    assert rows[0][4:7] == ["share [%]", "worst share [%] (pose)", "callout"] and len(rows) == 15
+    assert all(row[4] == "7.1" for row in rows[1:])
     assert any("perpendicularity of limb4_u1's axis to base z" in r[-1] for r in rows)
     assert any("angularity of limb4_u1's axis about base z's axis" in r[-1] for r in rows)
 

@@ -186,9 +186,27 @@ def _z(z: float | None, ppm: float) -> str:
 
 
 def drawing_rows(r: DesignResult) -> list[list[str]]:
-    """One row per toleranced error: σ, ±t, the callout kind, nominal, zone, IT grade, the callout."""
+    """One row per toleranced error: σ, ±t, shares, callout kind, nominal, zone, IT grade, the callout."""
     so = sign_off(r)
-    rows = [["parameter", "unit", "σ", "±t", "callout", "nominal", "zone [mm]", "ISO 286", "on the drawing"]]
+    rows = [
+        [
+            "parameter",
+            "unit",
+            "σ",
+            "±t",
+            *SHARE_HEADER,
+            "callout",
+            "nominal",
+            "zone [mm]",
+            "ISO 286",
+            "on the drawing",
+        ]
+    ]
+    c = so.contributions
+    shares = {
+        int(i): [percent(c.at_design[k]), f"{percent(c.worst[k])} ({c.worst_pose[k]})"]
+        for k, i in enumerate(c.columns)
+    }
     for d in so.drawings:
         if d.nominal_m is not None:
             nominal = f"{1e3 * d.nominal_m:.6g} mm"
@@ -202,6 +220,7 @@ def drawing_rows(r: DesignResult) -> list[list[str]]:
                 display_unit(d.unit),
                 f"{display(d.sigma, d.unit):.4f}",
                 _t(d.tolerance, d.unit),
+                *shares.get(d.index, ["-", "-"]),
                 d.kind,
                 nominal,
                 "-" if d.zone_m is None else f"{1e3 * d.zone_m:.4f}",
