@@ -11,6 +11,9 @@ issue 15 (on the 2-core CI machine):
     exact perturbed forward solves                 ≥ 15,000 /s
     import pkmtol (whole process)                  ≤ 0.3 s
     pkmtol allocate with figures (whole process)   ≤ 2.0 s CPU
+    identification from 50 poses (issue 12)          ≤ 1 s
+    calibration study 100 × 50 × 200 (issue 12)      ≤ 60 s on one core
+    allocate --compensation calibrated (issue 13)    ≤ 2× the ideal mode (whole process CPU)
     10⁶ linear samples (allocate's sampling stages) ≤ 3 s and ≤ 350 MB peak RSS
     cost design on a 2,352-point grid              ≤ 3 s
 
@@ -46,12 +49,20 @@ import numpy as np  # noqa: E402
 from scipy import special  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
+from pkmtol.calibration.holdout import holdout_poses  # noqa: E402
+from pkmtol.calibration.identification import identify, model_positions  # noqa: E402
+from pkmtol.calibration.machine import Machine  # noqa: E402
+from pkmtol.calibration.plan import candidate_pool, make_plan  # noqa: E402
+from pkmtol.calibration.settings import CalibrationSettings  # noqa: E402
+from pkmtol.calibration.study import StudyCase, run_study, study_context  # noqa: E402
+from pkmtol.calibration.workflow import design_sigma  # noqa: E402
 from pkmtol.design.job import DesignOptions, allocate  # noqa: E402
 from pkmtol.design.methods import method_design_for  # noqa: E402
 from pkmtol.design.reliability import _NODES, exact_reliability_many  # noqa: E402
 from pkmtol.design.verification import sample_errors  # noqa: E402
 from pkmtol.error_model.parameters import default_set, parameter_set  # noqa: E402
 from pkmtol.error_model.sweep import sweep  # noqa: E402
+from pkmtol.executor import Executor  # noqa: E402
 from pkmtol.kinematics.batch import BatchChain  # noqa: E402
 from pkmtol.kinematics.closed_chain import ClosedChain  # noqa: E402
 from pkmtol.kinematics.continuation import continuation  # noqa: E402
@@ -348,6 +359,8 @@ def main() -> None:
             )
         )
 
+    rows += calibration_rows(mech, pset, chain, args, py)
+
     w = max(len(r[0]) for r in rows)
     print(
         f"pkmtol benchmark — {mech.name}, best of {args.repeat_fast} interleaved (in-process) / "
@@ -357,6 +370,88 @@ def main() -> None:
     print("-" * (w + 110))
     for name, size, value, base, target in rows:
         print(f"{name.ljust(w)}  {size:>11}  {value:>18}  {base:<55}  {target}")
+
+
+def calibration_rows(mech, pset, chain, args, py):  # noqa: ANN001, ANN201 - script helper
+    """Issues 12 and 13: identification, the exact study, and allocate --compensation calibrated."""
+    grid = sweep(mech, pset, mech.task_space.grid(), chain)
+    classes = grid.classify()
+    settings = CalibrationSettings(poses=50)
+    plan = make_plan(mech, pset, classes, settings, candidate_pool(mech, pset, settings, chain, grid=grid))
+    rng = np.random.default_rng(0)
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta = np.zeros(len(pset))
+    delta[comp] = rng.standard_normal(len(comp)) * settings.manufacturing_sigma(pset)[comp]
+    true = Machine(mech, pset, delta)
+    measured, _ = model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
+    measured = measured + rng.standard_normal(measured.shape) * settings.noise_m
+
+    def per_pose_pass() -> None:  # what one Gauss–Newton pass cost before the batched solver
+        for u, q in zip(plan.maps.commands, plan.maps.q, strict=True):
+            true.forward(u, q)
+
+    t_id, t_pass, t_batch, iters = [], [], [], 0
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        ident = identify(
+            mech, pset, plan.ident, plan.H, plan.maps.commands, plan.maps.q, measured, plan.targets_m
+        )
+        t_id.append(time.perf_counter() - t0)
+        iters = ident.iterations
+        t0 = time.perf_counter()
+        per_pose_pass()
+        t_pass.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
+        t_batch.append(time.perf_counter() - t0)
+    rows = [
+        (
+            "identification on exact kinematics",
+            "50 poses",
+            f"{min(t_id):.3f} s ({iters} GN iter.)",
+            f"one forward pass per pose {min(t_pass) * 1e3:.1f} ms, batched {min(t_batch) * 1e3:.1f} ms"
+            f" = {min(t_pass) / min(t_batch):.1f}×",
+            "≤ 1 s",
+        )
+    ]
+    if not args.skip_slow:
+        sigma = design_sigma(pset, classes, settings, None)
+        unc = [i for i, c in enumerate(classes) if c == "uncompensatable"]
+        sigma[unc] = 2e-5
+        ho = holdout_poses(mech, pset, 200, np.random.default_rng(1), chain)
+        case = [(StudyCase("compensatable", "d-optimal", 50), plan)]
+        ctx = study_context(mech, pset, sigma, ho.maps, ho.correction, ho.ideal, case, mech.target_m)
+        t0 = time.perf_counter()
+        run_study(ctx, 100, seed=0)
+        serial = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        run_study(ctx, 100, seed=0, chunk=10, executor=Executor(workers=2))
+        two = time.perf_counter() - t0
+        rows.append(
+            (
+                "calibration study, exact (one case)",
+                "100×50×200",
+                f"{serial:.1f} s serial",
+                f"2 local workers {two:.1f} s = {serial / two:.2f}× (same numbers)",
+                "≤ 60 s on one core",
+            )
+        )
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [py, "-m", "pkmtol.cli", "allocate", str(args.robot), "--no-figures", "--no-progress"]
+        ideal, cal = [], []
+        for k in range(args.repeat):  # interleaved
+            ideal.append(process([*cmd, "--out", f"{tmp}/i{k}"], ROOT)[1])
+            cal.append(process([*cmd, "--compensation", "calibrated", "--out", f"{tmp}/c{k}"], ROOT)[1])
+    rows.append(
+        (
+            "allocate --compensation calibrated (CPU)",
+            "",
+            f"{min(cal):.2f} s CPU",
+            f"ideal {min(ideal):.2f} s CPU = {min(cal) / min(ideal):.2f}× ideal",
+            "≤ 2× ideal",
+        )
+    )
+    return rows
 
 
 if __name__ == "__main__":

@@ -193,3 +193,35 @@ def test_simulate_command_reports_every_row(tmp_path, capsys):
         exact, lin = case["exact"], case["linear_prediction"]
         assert abs(exact["mean_dlambda_m"] - lin["mean_dlambda_m"]) < 0.05 * lin["mean_dlambda_m"]
     assert (out / "calibration_histogram.png").is_file() and (out / "p99_against_poses.svg").is_file()
+
+
+def test_study_is_the_same_serially_and_on_two_processes(tmp_path):
+    """Machines are seeded one by one: the executor and its worker count change no number."""
+    from pkmtol.calibration.holdout import holdout_poses
+    from pkmtol.calibration.study import StudyCase, run_study, study_context
+    from pkmtol.executor import Executor
+
+    mech = load_mechanism(SEED)
+    pset = parameter_set(mech, "urdf")
+    chain = ClosedChain(mech)
+    classes = sweep(mech, pset, mech.task_space.grid(), chain).classify()
+    settings = CalibrationSettings(candidates=20)
+    plan = make_plan(mech, pset, classes, settings, candidate_pool(mech, pset, settings, chain), poses=20)
+    sigma = settings.manufacturing_sigma(pset)
+    sigma[[i for i, c in enumerate(classes) if c != "compensatable"]] = 0.0
+    ho = holdout_poses(mech, pset, 15, np.random.default_rng(2), chain)
+    ctx = study_context(
+        mech,
+        pset,
+        sigma,
+        ho.maps,
+        ho.correction,
+        ho.ideal,
+        [(StudyCase("compensatable", "d-optimal", 20), plan)],
+        5e-5,
+    )
+    serial = run_study(ctx, 4, seed=3, chunk=1)
+    parallel = run_study(ctx, 4, seed=3, chunk=3, executor=Executor(workers=2))
+    for a, b in ((serial.before, parallel.before), (serial.cases[0].exact, parallel.cases[0].exact)):
+        np.testing.assert_array_equal(a.dlambda_m, b.dlambda_m)
+    assert serial.cases[0].exact.mean_m > 0

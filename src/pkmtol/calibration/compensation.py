@@ -15,7 +15,6 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.calibration.machine import Machine
-from pkmtol.exceptions import KinematicsError
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,16 +71,18 @@ def pose_errors(
     m = len(commands)
     pos = np.full((m, 3), np.nan)
     rot = np.full((m, 3), np.nan)
+    good = np.all(np.isfinite(commands), axis=1)
     ok = np.zeros(m, dtype=bool)
-    for k in range(m):
-        try:
-            pose = machine.forward(commands[k], q0[k])
-        except KinematicsError:
-            continue
-        pos[k] = pose.p_m - targets_m[k]
-        rk = rotations[k]
-        rot[k] = rk @ pin.log3(rk.T @ pose.oMp.rotation)
-        ok[k] = True
+    if good.any():
+        idx = np.flatnonzero(good)
+        sols = machine.forward_many(commands[idx], q0[idx])
+        for j, k in enumerate(idx):
+            if sols.errors[j] is not None:
+                continue
+            pos[k] = sols.p_m[j] - targets_m[k]
+            rk = rotations[k]
+            rot[k] = rk @ pin.log3(rk.T @ sols.rotation[j])
+            ok[k] = True
     return PoseErrors(position_m=pos, rotation_rad=rot, solved=ok)
 
 
@@ -93,13 +94,5 @@ def controller_commands(
     Returns:
         ``(commands (m, f), solved (m,))``; unsolved rows are NaN.
     """
-    f = model.actuated_idx.size
-    out = np.full((len(targets_m), f), np.nan)
-    ok = np.zeros(len(targets_m), dtype=bool)
-    for k, (p, q) in enumerate(zip(targets_m, q0, strict=True)):
-        try:
-            out[k], _ = model.inverse(p, q)
-            ok[k] = True
-        except KinematicsError:
-            continue
-    return out, ok
+    commands, sols = model.inverse_many(targets_m, q0)
+    return commands, sols.ok

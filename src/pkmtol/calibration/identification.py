@@ -20,9 +20,9 @@ import numpy as np
 from scipy import linalg
 
 from pkmtol.calibration.identifiability import Identifiability
-from pkmtol.calibration.machine import Machine, target_positions
+from pkmtol.calibration.machine import Machine
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.exceptions import IdentificationError, InvalidRequestError, KinematicsError
+from pkmtol.exceptions import IdentificationError, InvalidRequestError
 from pkmtol.model.mechanism import Mechanism
 
 #: Stop when every step component is below this fraction of its parameter's scale (1e-12 m for a
@@ -94,20 +94,17 @@ def model_positions(
     Raises:
         IdentificationError: a pose cannot be solved (names it).
     """
-    out = np.empty((len(commands), np.atleast_2d(targets_m).shape[0], 3))
-    qs = np.empty_like(q0)
-    for k, (u, q) in enumerate(zip(commands, q0, strict=True)):
-        try:
-            pose = machine.forward(u, q)
-        except KinematicsError as err:
+    targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
+    sols = machine.forward_many(commands, q0)
+    for k, err in enumerate(sols.errors):
+        if err is not None:
             raise IdentificationError(
-                f"calibration pose {k} (commands {np.round(u, 6).tolist()}): the model cannot be "
+                f"calibration pose {k} (commands {np.round(commands[k], 6).tolist()}): the model cannot be "
                 f"solved there ({err}); the estimate left the range where the mechanism assembles — "
                 "check the measurements of that pose and the controller model"
             ) from err
-        out[k] = target_positions(pose, targets_m)
-        qs[k] = pose.q_all
-    return out, qs
+    out = sols.translation[:, None, :] + np.einsum("kij,tj->kti", sols.rotation, targets)
+    return out, sols.q
 
 
 def identify(

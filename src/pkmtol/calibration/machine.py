@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.kinematics.batch import BatchChain, Solutions
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.kinematics.perturbation import perturbed_limb_models
 from pkmtol.model.mechanism import Mechanism
@@ -33,6 +34,32 @@ class Machine:
         eps, self.offsets = pset.perturbation(self.delta, mechanism)
         self.chain = ClosedChain(mechanism, models=perturbed_limb_models(mechanism, eps), check_limits=False)
         self.actuated_idx = self.chain.actuated_idx
+        self._batch: BatchChain | None = None
+
+    @property
+    def batch(self) -> BatchChain:
+        """The batched solver of this machine (same models and equations as :attr:`chain`)."""
+        if self._batch is None:
+            self._batch = BatchChain(self.mechanism, chain=self.chain)
+        return self._batch
+
+    def forward_many(self, commands: np.ndarray, q0: np.ndarray) -> Solutions:
+        """:meth:`forward` of many readings at once: ``commands`` (B, f), guesses (B, Σ nq).
+
+        A problem that cannot be solved has its error in ``Solutions.errors`` (nothing raised).
+        """
+        commands = np.atleast_2d(np.asarray(commands, dtype=float))
+        offsets = np.broadcast_to(self.offsets, (len(commands), self.offsets.size))
+        return self.batch.forward(commands, q0, offsets)
+
+    def inverse_many(self, targets_m: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, Solutions]:
+        """:meth:`inverse` of many targets (B, 3) at once: ``(readings (B, f), solutions)``.
+
+        Rows of unsolved problems are NaN; their errors are in ``Solutions.errors``.
+        """
+        sols = self.batch.inverse(np.atleast_2d(np.asarray(targets_m, dtype=float)), q0)
+        commands = sols.q[:, self.actuated_idx] - self.offsets[self.actuated_idx]
+        return np.where(sols.ok[:, None], commands, np.nan), sols
 
     def forward(self, commands: np.ndarray, q0: np.ndarray) -> Pose:
         """Platform pose at actuator readings ``commands`` (f,), from the initial guess ``q0`` (Σ nq,).

@@ -29,6 +29,7 @@ from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.exceptions import CalibrationError
+from pkmtol.executor import Executor, map_chunks
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.statistics import quantiles, wilson_interval
 
@@ -368,12 +369,19 @@ def collect(ctx: StudyContext, outcomes: list[MachineOutcome]) -> StudyResult:
     )
 
 
-def run_study(ctx: StudyContext, machines: int, seed: int = 0, chunk: int = 5) -> StudyResult:
-    """Simulate ``machines`` machines (serially) and pool them; see :func:`simulate_chunk`."""
-    if machines < 1:
-        raise CalibrationError(f"the study needs at least one machine, got {machines}")
+def run_study(
+    ctx: StudyContext, machines: int, seed: int = 0, chunk: int = 5, executor: Executor | None = None
+) -> StudyResult:
+    """Simulate ``machines`` machines and pool them; see :func:`simulate_chunk`.
+
+    Machine ``k`` draws from its own ``SeedSequence(seed).spawn(machines)[k]``, so the result is the
+    same for every ``chunk`` size, executor and worker count (tested).
+    """
+    if isinstance(machines, bool) or not isinstance(machines, int) or machines < 1:
+        raise CalibrationError(f"the study needs an integer number of machines ≥ 1, got {machines!r}")
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise CalibrationError(f"the study's chunk size must be an integer ≥ 1, got {chunk!r}")
     seeds = np.random.SeedSequence(seed).spawn(machines)
-    outcomes: list[MachineOutcome] = []
-    for start in range(0, machines, chunk):
-        outcomes.extend(simulate_chunk((ctx, seeds[start : start + chunk])))
+    tasks = [(ctx, seeds[start : start + chunk]) for start in range(0, machines, chunk)]
+    outcomes = [o for part in map_chunks(simulate_chunk, tasks, executor) for o in part]
     return collect(ctx, outcomes)

@@ -21,6 +21,7 @@ from pkmtol.calibration.study import StudyCase, StudyResult, run_study, study_co
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import sweep
 from pkmtol.exceptions import InvalidRequestError
+from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
@@ -206,6 +207,7 @@ def simulate(
     controllers: tuple[str | tuple[str, ...], ...] | None = None,
     selections: tuple[str, ...] = SELECTIONS,
     tool_axis: np.ndarray | None = None,
+    executor: Executor | None = None,
 ) -> StudyReport:
     """The calibration study on exact kinematics (:mod:`pkmtol.calibration.study`).
 
@@ -221,6 +223,7 @@ def simulate(
         controllers: Controller models to compare (default: both ``compensatable`` and ``full``).
         selections: Pose selections to compare.
         tool_axis: Tool axis in the platform frame (default z).
+        executor: Where the machines are simulated (None: serial); the numbers do not depend on it.
     """
     if isinstance(machines, bool) or not isinstance(machines, int) or machines < 1:
         raise InvalidRequestError(f"the study needs an integer number of machines ≥ 1, got {machines!r}")
@@ -241,7 +244,7 @@ def simulate(
     ctx = study_context(mechanism, pset, sigma, ho.maps, ho.correction, ho.ideal, plans, target_m, tool_axis)
     timings["plans"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    study = run_study(ctx, machines, settings.seed)
+    study = run_study(ctx, machines, settings.seed, chunk=5 if executor is None else 10, executor=executor)
     timings["exact simulation"] = time.perf_counter() - t0
     return StudyReport(
         study=study, settings=settings, sigma=sigma, holdout_skipped=ho.skipped, timings_s=timings

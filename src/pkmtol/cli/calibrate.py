@@ -15,6 +15,7 @@ from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.cli.common import add_executor_options, executor_from
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
@@ -69,6 +70,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<robot>/calibration)")
     p.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    add_executor_options(p)
     p.set_defaults(run=_run)
 
 
@@ -133,6 +135,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.simulate and args.measurements is not None:
         raise InvalidRequestError("give either --simulate or --measurements, not both")
     settings = plan_settings(mech, args, args.seed)
+    executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = parameter_set(mech, args.pset or default_set(mech))
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
     check_output_folder(out)
@@ -192,7 +195,17 @@ def _run(args: argparse.Namespace) -> int:
             )
         study = None
         if args.simulate:
-            rep = simulate(mech, pset, classes, settings, sigma, mech.target_m, args.machines, args.holdout)
+            rep = simulate(
+                mech,
+                pset,
+                classes,
+                settings,
+                sigma,
+                mech.target_m,
+                args.machines,
+                args.holdout,
+                executor=executor,
+            )
             study = rep.study
             text += "\n" + study_text(rep)
             files += [
