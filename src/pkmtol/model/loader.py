@@ -120,8 +120,9 @@ def _from_doc(
         actuated = lr.get("actuated", list, default=[])
         home = lr.get("home", list, default=None)
         dh = read_dh(lr) if "dh" in ld else None
+        loops = read_loops(lr) if "loops" in ld else []
         model, visual = load_urdf(lname, urdf, urdf_texts.get(lname))
-        limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual))
+        limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual, loops))
     return Mechanism.from_limbs(
         name,
         limbs,
@@ -169,6 +170,28 @@ def read_task_space(r: TomlReader) -> TaskSpace:
         return TaskSpace(kind="points", points_m=pts)
     r.fail("task_space.kind", f"unknown kind {kind!r}; use 'cylinder' or 'points'")
     raise AssertionError  # unreachable
+
+
+def read_loops(r: TomlReader) -> list[tuple[str, str, str, str]]:
+    """A limb's ``[[limbs.loops]]`` tables: ``(name, frame_a, frame_b, kind)`` per internal loop.
+
+    Keys: ``frames`` (two frame names of the limb's URDF that coincide when the loop is closed;
+    the second one's placement error is the loop's), ``type`` (``"6d"``, the default, or ``"3d"``:
+    only the frames' origins coincide), ``name`` (default ``loop<k>``).
+    """
+    out = []
+    for k, entry in enumerate(r.get("loops", list)):
+        if not isinstance(entry, dict):
+            r.fail(f"loops[{k}]", f"expected a table (frames, type, name), got {entry!r}")
+        lr = TomlReader(r.path, entry, prefix=f"{r.prefix}loops[{k}].")
+        frames = lr.get("frames", list)
+        if len(frames) != 2 or not all(isinstance(f, str) for f in frames):
+            lr.fail("frames", f"expected two frame names [frame_a, frame_b], got {frames!r}")
+        kind = lr.get("type", str, default="6d").lower()
+        if kind not in ("6d", "3d"):
+            lr.fail("type", f"unknown loop type {kind!r}; use '6d' (frames coincide) or '3d' (points meet)")
+        out.append((lr.get("name", str, default=f"loop{k + 1}"), frames[0], frames[1], kind))
+    return out
 
 
 def read_dh(r: TomlReader) -> DHTable:

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.exceptions import PlatformMismatchError, URDFError
+from pkmtol.exceptions import LoopMismatchError, PlatformMismatchError, URDFError
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.taskspace import TaskSpace
@@ -163,7 +163,23 @@ class Mechanism:
 
 
 def check_home(mech: Mechanism) -> None:
-    """Raise PlatformMismatchError if the platform frames do not coincide at ``home``."""
+    """Raise PlatformMismatchError if the platform frames do not coincide at ``home``.
+
+    Raises:
+        LoopMismatchError: an internal loop of a limb is open at ``home``.
+        PlatformMismatchError: a limb's platform frame is away from limb 0's.
+    """
+    for limb in mech.limbs:
+        if not limb.loops:
+            continue
+        data = limb.model.createData()
+        pin.framesForwardKinematics(limb.model, data, limb.home)
+        for lp in limb.loops:
+            oma, omb = data.oMf[lp.frame_a], data.oMf[lp.frame_b]
+            dist = float(np.linalg.norm(omb.translation - oma.translation))
+            ang = float(np.linalg.norm(pin.log3(oma.rotation.T @ omb.rotation))) if lp.kind == "6d" else 0.0
+            if dist > HOME_TOLERANCE_M or ang > HOME_TOLERANCE_RAD:
+                raise LoopMismatchError(limb.name, lp.name, lp.frame_names, dist, ang)
     ref = mech.limbs[0]
     m0 = _platform_placement(ref, ref.home)
     for limb in mech.limbs[1:]:
