@@ -17,8 +17,9 @@ columns (SVD ``C_p = U S Vᵀ``, rank ``r``):
   over-constrained mechanisms' incompatible part (docs/theory.md, "General loops").
 
 Then :func:`~pkmtol.error_model.separation.separate` treats ``(T̃, E')`` as it treats a serial
-limb's ``(T, E)``, the actuator being column 0 of ``T̃``. A limb without loops has ``T̃ = T``,
-``E' = E`` and is not handled here.
+limb's ``(T, E)``, the actuator being column 0 of ``T̃``. A limb without loops has ``T̃ = T`` (its
+columns reordered, actuator first) and ``E' = E``; ``separate`` gives it today's path, and the
+reduction test runs it through this one too (``separate(..., general=True)``).
 """
 
 from __future__ import annotations
@@ -81,10 +82,12 @@ def raw_rows_many(
         e_p[k, :, off:] = pin.getFrameJacobian(model, data, limb.platform_frame, pin.LOCAL)
         for n, lp in enumerate(limb.loops):
             for side, f in enumerate((lp.frame_a, lp.frame_b)):
+                if f in limb.attach_frames:  # a loop side on the platform frame moves with its attachment
+                    sides[n][side][k, :, n_reg : n_reg + 6] = np.eye(6)
                 placements[n][side][k] = pin.updateFramePlacement(model, data, f).homogeneous
                 sides[n][side][k, :, :n_reg] = pin.computeFrameKinematicRegressor(model, data, f, pin.LOCAL)
                 sides[n][side][k, :, off:] = pin.getFrameJacobian(model, data, f, pin.LOCAL)
-    rows_c, rows_d = [], []
+    rows_c, rows_d = [np.zeros((b, 0, nq))], [np.zeros((b, 0, n_raw))]
     for n, lp in enumerate(limb.loops):
         blk = 6 * (nq + 1 + n)
         sides[n][1][:, :, blk : blk + 6] = np.eye(6)  # the loop's own closure error moves frame b

@@ -117,7 +117,9 @@ def unit_screw(w: np.ndarray) -> np.ndarray:
     return w / (f if f > 1e-9 * np.linalg.norm(w) else np.linalg.norm(w[3:]))
 
 
-def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose: Pose) -> Separation:
+def separate(
+    mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose: Pose, general: bool = False
+) -> Separation:
     """The error model and its separation at ``pose``.
 
     Args:
@@ -125,6 +127,9 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         pset: The error-parameter set.
         chain: A solver workspace of the mechanism (its models and datas are reused).
         pose: A closed-chain pose of the mechanism.
+        general: Treat every limb as a limb with loops (its motion space ``T̃`` and columns ``E'``,
+            :mod:`pkmtol.error_model.limb_motion`), serial ones included: the same results to
+            round-off (the reduction test); default: serial limbs take the direct path.
 
     Raises:
         SingularPoseError: W is singular (or nearly) at this pose.
@@ -140,7 +145,7 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
     for i, limb in enumerate(mechanism.limbs):
         sl = pset.slices[i]
         acts: tuple[int, ...] = limb.actuated
-        if limb.loops:
+        if limb.loops or general:
             # the limb's loops eliminated: motion space T̃ (actuator first) and error columns E'
             lm = loop_motion(
                 limb,

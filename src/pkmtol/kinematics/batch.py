@@ -330,11 +330,13 @@ class BatchChain:
             placements.append(h)
             jacobians.append(jac)
             frames = []
-            for n in range(len(limb.loops)):
+            for n, lp in enumerate(limb.loops):
                 ha, hb, ja, jb = (np.array(x) for x in lf[4 * n : 4 * n + 4])
                 delta = perturbation[i][2][n] if perturbation is not None else None
                 if delta is not None:
                     hb, jb = _moved(hb, jb, delta[idx])
+                if attach is not None and lp.frame_a in limb.attach_frames:
+                    ha, ja = _moved(ha, ja, attach[idx])
                 frames.append((ha, hb, ja, jb))
             loop_frames.append(frames)
         return placements, jacobians, loop_frames

@@ -39,10 +39,7 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
         for j in range(1, m.njoints):
             m.jointPlacements[j] = limb.model.jointPlacements[j] * pin.exp6(e[j - 1])
         delta = pin.exp6(e[limb.nq])
-        ids = {limb.platform_frame}
-        if m.existFrame(limb.attach_name):
-            ids.add(m.getFrameId(limb.attach_name))
-        for fid in ids:
+        for fid in limb.attach_frames:
             fr = m.frames[fid]
             fr.placement = limb.model.frames[fid].placement * delta
             m.frames[fid] = fr

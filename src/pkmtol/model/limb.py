@@ -91,6 +91,16 @@ class Limb:
         return 6 * self.n_origins + self.nq
 
     @property
+    def attach_frames(self) -> frozenset[int]:
+        """Frame ids that the platform-attachment error moves: the platform frame and its attach frame.
+
+        A loop side on one of them moves with it.
+        """
+        ids = {self.platform_frame}
+        ids.update(k for k, f in enumerate(self.model.frames) if f.name == self.attach_name)
+        return frozenset(ids)
+
+    @property
     def loop_rows(self) -> int:
         """Number of internal-loop closure equations."""
         return sum(lp.rows for lp in self.loops)
