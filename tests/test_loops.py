@@ -398,3 +398,51 @@ def test_a_tree_without_loops_and_a_stray_branch_are_refused(tmp_path):
     )
     with pytest.raises(MechanismFormatError, match="expected two frame names"):
         load_mechanism(folder)
+
+
+# --- the closed-loop imports: loops inside limbs, point loops ----------------------------------
+
+
+def _script(name: str):
+    import importlib.util
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("form", ["limbs_to_closed_loop", "limbs_to_mjcf"])
+def test_delta_read_from_one_tree_is_the_same_mechanism(tmp_path, delta, form):
+    """The Delta written as one URDF tree (3d loops in the sidecar) or one MJCF file (<connect>):
+    the cut gives each arm its rod-2 loop back, the same poses (1e-12), twist maps, corrections and
+    J (1e-10) and classes, parameters renamed (loops and attachments take the tree's loop names)."""
+    mech, chain = delta
+    for name, text in _script(form).generate(DELTA).items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    tree = load_mechanism(tmp_path)
+    assert [lb.name for lb in tree.limbs] == ["arm1", "arm2", "arm3"]
+    assert [(lp.kind, lp.frame_names) for lb in tree.limbs for lp in lb.loops] == [
+        ("3d", (f"arm{i}_rod2_socket", f"arm{i}_rod2_end")) for i in (1, 2, 3)
+    ]
+    ps, pt = parameter_set(mech, "urdf"), parameter_set(tree, "urdf")
+    assert len(ps) == len(pt)
+    rename = {}
+    for a, b in zip(mech.limbs, tree.limbs, strict=True):
+        for old, new in [(a.attach_name, b.attach_name)] + [
+            (la.name, lb_.name) for la, lb_ in zip(a.loops, b.loops, strict=True)
+        ]:
+            for comp in ("dx", "dy", "dz", "rx", "ry", "rz"):
+                rename[f"{a.name}.{old}.{comp}"] = f"{b.name}.{new}.{comp}"
+    idx = [pt.names.index(rename.get(n, n)) for n in ps.names]
+    tchain = ClosedChain(tree)
+    points = mech.task_space.grid()[::9]
+    a, b = sweep(mech, ps, points, chain), sweep(tree, pt, points, tchain)
+    for sa, sb in zip(a.separations, b.separations, strict=True):
+        np.testing.assert_allclose(sb.pose.q_all, sa.pose.q_all, rtol=0, atol=1e-12)
+        for field in ("twist_map", "correction", "J", "J_total"):
+            np.testing.assert_allclose(getattr(sb, field)[:, idx], getattr(sa, field), rtol=0, atol=1e-10)
+    assert [b.classify()[k] for k in idx] == a.classify()

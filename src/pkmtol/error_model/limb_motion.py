@@ -75,6 +75,10 @@ def raw_rows_many(
     rot = np.empty((b, 3, 3))
     sides = [[np.zeros((b, 6, n_raw)) for _ in range(2)] for _ in limb.loops]
     placements = [[np.empty((b, 4, 4)) for _ in range(2)] for _ in limb.loops]
+    for n, lp in enumerate(limb.loops):
+        for side, f in enumerate((lp.frame_a, lp.frame_b)):
+            if f in limb.attach_frames:  # a loop side on the platform frame moves with its attachment
+                sides[n][side][:, :, n_reg : n_reg + 6] = np.eye(6)
     for k in range(b):
         pin.computeJointJacobians(model, data, qs[k])
         rot[k] = pin.updateFramePlacement(model, data, limb.platform_frame).rotation
@@ -82,8 +86,6 @@ def raw_rows_many(
         e_p[k, :, off:] = pin.getFrameJacobian(model, data, limb.platform_frame, pin.LOCAL)
         for n, lp in enumerate(limb.loops):
             for side, f in enumerate((lp.frame_a, lp.frame_b)):
-                if f in limb.attach_frames:  # a loop side on the platform frame moves with its attachment
-                    sides[n][side][k, :, n_reg : n_reg + 6] = np.eye(6)
                 placements[n][side][k] = pin.updateFramePlacement(model, data, f).homogeneous
                 sides[n][side][k, :, :n_reg] = pin.computeFrameKinematicRegressor(model, data, f, pin.LOCAL)
                 sides[n][side][k, :, off:] = pin.getFrameJacobian(model, data, f, pin.LOCAL)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -90,7 +91,7 @@ class Limb:
         """Raw errors of the limb: 6 per origin error, then one zero offset per joint."""
         return 6 * self.n_origins + self.nq
 
-    @property
+    @cached_property
     def attach_frames(self) -> frozenset[int]:
         """Frame ids that the platform-attachment error moves: the platform frame and its attach frame.
 
