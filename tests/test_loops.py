@@ -446,3 +446,47 @@ def test_delta_read_from_one_tree_is_the_same_mechanism(tmp_path, delta, form):
         for field in ("twist_map", "correction", "J", "J_total"):
             np.testing.assert_allclose(getattr(sb, field)[:, idx], getattr(sa, field), rtol=0, atol=1e-10)
     assert [b.classify()[k] for k in idx] == a.classify()
+
+
+# --- export: the mechanism as one tree plus constraint models ----------------------------------
+
+
+def test_delta_exports_its_internal_loops_as_point_anchors(delta):
+    """One pin.Model plus 2 frame anchors (arms 2, 3 on the platform) and 3 point anchors (the rods 2):
+    pkmtol's closed solutions, nominal and perturbed, satisfy them; their Jacobian allows the platform
+    motions pkmtol's constraint wrenches allow (the translations)."""
+    from pkmtol.error_model.separation import null_space
+
+    mech, chain = delta
+    cm = mech.constraint_models()
+    assert [type(c).__name__ for c in cm.constraints] == ["FrameAnchorConstraintModel"] * 2 + [
+        "PointAnchorConstraintModel"
+    ] * 3
+    assert [c.name for c in cm.constraints][2:] == ["arm1.rod2", "arm2.rod2", "arm3.rod2"]
+    ps = parameter_set(mech, "urdf")
+    pose = chain.inverse(np.array([0.2, -0.1, -0.95]), chain.home())
+    q = cm.q(pose.q)
+    res = cm.residuals(q)
+    assert res.shape == (21,) and np.abs(res).max() < 1e-12
+    jac = cm.jacobian(q)
+    n = null_space(jac)
+    data = mech.limbs[0].model.createData()
+    j0 = pin.computeFrameJacobian(
+        mech.limbs[0].model, data, pose.q[0], mech.limbs[0].platform_frame, pin.LOCAL
+    )
+    v = to_k_prime_many(pose.oMp.rotation[None], np.array(j0)[None])[0] @ n[cm.q_slices[0]]
+    u, s, _ = np.linalg.svd(v, full_matrices=False)
+    a = u[:, s > 1e-9 * s[0]]
+    sep = separate(mech, ps, chain, pose)
+    b = null_space(sep.W_c.T)
+    assert a.shape[1] == b.shape[1] == 3
+    assert np.linalg.norm(a @ a.T - b @ b.T, 2) < 1e-9
+    # a perturbed Delta, closed by pkmtol, closes Pinocchio's perturbed constraints (and not the nominal)
+    eta = np.random.default_rng(1).normal(0.0, 1e-5, len(ps))
+    eps, offsets = ps.perturbation(eta, mech)
+    models = perturbed_limb_models(mech, eps)
+    actual = ClosedChain(mech, models, check_limits=False).forward(
+        pose.q_all[chain.actuated_idx], pose.q_all, offsets
+    )
+    assert np.abs(mech.constraint_models(models).residuals(cm.q(actual.q))).max() < 1e-12
+    assert np.abs(cm.residuals(cm.q(actual.q))).max() > 1e-7
