@@ -78,7 +78,7 @@ def pose_errors(
             pose = machine.forward(commands[k], q0[k])
         except KinematicsError:
             continue
-        pos[k] = pose.p_m - targets_m[k]
+        pos[k] = machine.mechanism.task_error(pose.p_m - targets_m[k])
         rk = rotations[k]
         rot[k] = rk @ pin.log3(rk.T @ pose.oMp.rotation)
         ok[k] = True

@@ -67,7 +67,8 @@ class Separation:
         correction: Shape (f, n): Eq. 25, actuator command change ``Δu = correction · η`` [m, rad].
         uncompensated_map: Shape (6, n): ``W⁻ᵀ [0; Y_c]``, the pose error left after Eq. 25.
         lever_m: Shape (3,): ``l``, vector O' → P in K [m].
-        J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23).
+        J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23); for a
+            planar task its in-plane part (``Mechanism.task_projection``).
         J_total: Shape (3, n): position error of P without compensation (traditional method).
         redundancy: ``f + c − 6`` (number of linearly dependent wrenches, over-constraint) plus
             the number of dependent loop equations inside the limbs.
@@ -219,7 +220,7 @@ def separate(
     unc = W_inv_T[:, f:] @ Y_c
     incompatible = np.vstack([Y - W.T @ twist_map] + [np.array(inner).reshape(-1, n)])
     lever = rot @ mechanism.reference_point_m
-    to_p = np.hstack([np.eye(3), -pin.skew(lever)])
+    to_p = mechanism.task_projection @ np.hstack([np.eye(3), -pin.skew(lever)])
     lam_arr = np.array(lam)
     return Separation(
         pose=pose,
@@ -401,6 +402,7 @@ def _stacked(
     to_p = np.zeros((b, 3, 6))
     to_p[:, :, :3] = np.eye(3)
     to_p[:, :, 3:] = -_skew_rows(lever)
+    to_p = mechanism.task_projection @ to_p  # a planar task: the in-plane part of P's error
     lam_arr = np.stack(lam, axis=1) if f else np.zeros((b, 0))
     correction = -(y_a / lam_arr[:, :, None]) if f else np.zeros((b, 0, n))
     J, J_total = to_p @ unc, to_p @ twist_map

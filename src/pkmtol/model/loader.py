@@ -74,9 +74,27 @@ def _from_doc(
     platform_link = r.get("platform_link", str, default="platform")
     p_ref = r.vector("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
-    if kind != "position":
-        r.fail("task.kind", f"unknown task kind {kind!r}; supported: 'position' (of P)")
+    if kind not in ("position", "planar"):
+        r.fail(
+            "task.kind",
+            f"unknown task kind {kind!r}; supported: 'position' (of P) and 'planar' (P in a plane, "
+            "with task.normal)",
+        )
     task_space = read_task_space(r)
+    normal = None
+    if kind == "planar":
+        normal = r.vector("task.normal", 3)
+        if not np.all(np.isfinite(normal)) or np.linalg.norm(normal) < 1e-12:
+            r.fail("task.normal", f"expected a non-zero [x, y, z] (frame K), got {normal.tolist()}")
+        n = normal / np.linalg.norm(normal)
+        heights = task_space.grid() @ n
+        if np.ptp(heights) > 1e-9:
+            r.fail(
+                "task_space",
+                f"a planar task needs a task space in one plane of normal {n.tolist()}; its points are "
+                f"{np.ptp(heights) * 1e3:.3g} mm apart along the normal (give a cylinder with z_m = "
+                "[z, z] and normal [0, 0, 1], or coplanar points)",
+            )
     target = r.get("design.target", (str, float, int), default="0.05 mm")
     try:
         target_m = parse_length(target, "design.target")
@@ -139,6 +157,7 @@ def _from_doc(
             "design": design_extra,
         },
         check_home_closure=check_home_closure,
+        task_normal=normal,
     )
 
 
