@@ -28,6 +28,7 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 EXTRA_MODULES = (
     "pkmtol.model.sidecar",
     "pkmtol.model.tree_cut",
+    "pkmtol.model.tree_limbs",
     "pkmtol.model.closed_loop",
     "pkmtol.model.mjcf",
     "pkmtol.model.mjcf_checks",
@@ -50,6 +51,7 @@ MODULE_ORDER = (
     "pkmtol.model.loader",
     "pkmtol.model.sidecar",
     "pkmtol.model.tree_cut",
+    "pkmtol.model.tree_limbs",
     "pkmtol.model.closed_loop",
     "pkmtol.model.mjcf",
     "pkmtol.model.mjcf_checks",
