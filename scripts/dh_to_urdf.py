@@ -1,5 +1,7 @@
 """Generate (or check) a robot's limb URDFs from the D–H tables in its mechanism.toml.
 
+A thin wrapper over :func:`pkmtol.model.robot_files.urdfs_from_toml`.
+
 Usage:
     python scripts/dh_to_urdf.py robots/r2rps_ups          # write limb URDFs
     python scripts/dh_to_urdf.py robots/r2rps_ups --check  # exit 1 if a URDF differs from its table
@@ -9,27 +11,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tomllib
 from pathlib import Path
 
-from pkmtol.model.dh import to_urdf
-from pkmtol.model.loader import read_dh
-from pkmtol.model.reading import TomlReader
+from pkmtol.exceptions import PkmtolError
+from pkmtol.model.robot_files import urdfs_from_toml
 
 
 def generate(folder: Path) -> dict[Path, str]:
     """URDF text per limb file, from the D–H tables of ``folder/mechanism.toml``."""
-    path = folder / "mechanism.toml"
-    doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    platform = doc.get("platform_link", "platform")
-    base = doc.get("base_link", "base")
-    out = {}
-    for i, ld in enumerate(doc["limbs"]):
-        if "dh" not in ld:
-            continue
-        table = read_dh(TomlReader(path, ld, prefix=f"limbs[{i}]."))
-        out[folder / ld["urdf"]] = to_urdf(table, ld["name"], base, platform, ld["name"])
-    return out
+    return urdfs_from_toml(folder)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,8 +27,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
     ap.add_argument("--check", action="store_true", help="compare instead of writing")
     args = ap.parse_args(argv)
+    try:
+        urdfs = generate(args.robot)
+    except PkmtolError as err:
+        print(f"dh_to_urdf: error: {err}", file=sys.stderr)
+        return 2
     stale = []
-    for path, text in generate(args.robot).items():
+    for path, text in urdfs.items():
         if args.check:
             if not path.is_file() or path.read_text(encoding="utf-8") != text:
                 stale.append(path)

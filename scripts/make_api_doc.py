@@ -26,6 +26,14 @@ import pkmtol
 DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 #: Modules whose public names are documented besides ``pkmtol.__all__`` (imported from the module).
 EXTRA_MODULES = (
+    "pkmtol.values",
+    "pkmtol.model.keys",
+    "pkmtol.model.families",
+    "pkmtol.model.robot_files",
+    "pkmtol.kinematics.robot_folder",
+    "pkmtol.design.budget",
+    "pkmtol.present.run_folder",
+    "pkmtol.present.outputs",
     "pkmtol.model.sidecar",
     "pkmtol.model.tree_cut",
     "pkmtol.model.tree_limbs",
@@ -46,6 +54,8 @@ EXTRA_MODULES = (
 )
 #: Section order: the pipeline (docs/architecture.md), then presentation, then errors.
 MODULE_ORDER = (
+    "pkmtol.values",
+    "pkmtol.model.keys",
     "pkmtol.model.limb",
     "pkmtol.model.mechanism",
     "pkmtol.model.loader",
@@ -57,8 +67,11 @@ MODULE_ORDER = (
     "pkmtol.model.mjcf_checks",
     "pkmtol.model.constraints",
     "pkmtol.model.taskspace",
+    "pkmtol.model.families",
+    "pkmtol.model.robot_files",
     "pkmtol.kinematics.closed_chain",
     "pkmtol.kinematics.perturbation",
+    "pkmtol.kinematics.robot_folder",
     "pkmtol.error_model.parameters",
     "pkmtol.error_model.accuracy",
     "pkmtol.error_model.separation",
@@ -70,8 +83,11 @@ MODULE_ORDER = (
     "pkmtol.design.reliability",
     "pkmtol.design.exact",
     "pkmtol.design.cost",
+    "pkmtol.design.budget",
     "pkmtol.design.job",
     "pkmtol.present.tables",
+    "pkmtol.present.outputs",
+    "pkmtol.present.run_folder",
     "pkmtol.present.viewer.options",
     "pkmtol.present.viewer.colours",
     "pkmtol.present.viewer.geometry",

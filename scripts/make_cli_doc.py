@@ -36,8 +36,14 @@ mobility different from the number of actuators); 2 a pkmtol error — a bad des
 request, an unwritable output — printed on stderr as `pkmtol: error: <message>`, where the message
 says what is wrong and what to do.
 
-**Units**: lengths on the command line carry their unit (`--target 0.05mm`, `50um`, `5e-5m`); a bare
-number is metres. Tables print lengths in mm or µm and angles in mrad; JSON files are SI.
+**Units**: lengths on the command line carry their unit (`--target 0.05mm`, `50um`, `5e-5m`); a number
+without a unit is refused. Tables print lengths in mm and angles in mrad (`--units um`: µm and µrad);
+JSON files are SI.
+
+**Bad values** are refused before any work, naming the option (`--seed -1: must be ≥ 0`); a request
+that would not fit in memory is refused up front with the estimate; progress bars show on stderr
+when it is a terminal (`--no-progress` hides them). [errors.md](errors.md) lists the bad inputs and
+their messages.
 
 This page is generated from the commands' `--help` by `scripts/make_cli_doc.py` (a test keeps it in
 sync). A walk-through with real output is in the [tutorial](tutorial.md).
@@ -56,6 +62,10 @@ EXAMPLES = {
         "pkmtol allocate robots/r2rps_ups --target 20um --beta 2 --samples 2000 --out out/quick",
         "pkmtol allocate robots/r2rps_ups --method exact --criterion worst",
         "pkmtol allocate robots/r2rps_ups --method cost --html out/scene.html",
+    ],
+    "new": [
+        "pkmtol new tricept --base-radius 0.55 --out robots/my_tricept",
+        "pkmtol new sprint_z3 --rod-length 0.45 --slider-stroke 0 0.6 --out robots/my_z3",
     ],
     "show": [
         "pkmtol show robots/r2rps_ups",
@@ -98,7 +108,11 @@ def generate() -> str:
     parts = [INTRO, "## pkmtol\n", "```text\n" + top + "```\n"]
     for cmd in commands(top):
         parts.append(f"## pkmtol {cmd}\n")
-        parts.append("```text\n" + help_text(cmd) + "```\n")
+        text = help_text(cmd)
+        parts.append("```text\n" + text + "```\n")
+        for sub in commands(text) if "positional arguments:" in text else []:
+            parts.append(f"### pkmtol {cmd} {sub}\n")
+            parts.append("```text\n" + help_text(cmd, sub) + "```\n")
         if cmd in EXAMPLES:
             parts.append("Examples:\n")
             parts.append("```bash\n" + "\n".join(EXAMPLES[cmd]) + "\n```\n")

@@ -14,7 +14,8 @@ from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.accuracy import norm_moments
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.model.loader import load_mechanism
-from pkmtol.present.tables import to_json, write_outputs
+from pkmtol.present.outputs import write_outputs
+from pkmtol.present.tables import to_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "robots" / "r2rps_ups"
@@ -131,7 +132,7 @@ def test_same_seed_same_bytes(mech):
         ({"target_m": -1e-5}, "Δλ* must be positive"),
         ({"betas": (1.0, -2.0)}, "β must be positive"),
         ({"design_beta": 0.0}, "β must be positive"),
-        ({"samples": 0}, "samples must be an integer ≥ 1"),
+        ({"samples": 0}, "samples = 0: must be ≥ 2"),
     ],
 )
 def test_bad_requests(mech, kwargs, needle):
@@ -155,7 +156,7 @@ def test_unwritable_output_leaves_nothing(mech, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
     out = tmp_path / "ok"
     written = write_outputs(r, out)
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in written)
+    assert sorted(p.name for p in out.iterdir()) == sorted([p.name for p in written] + ["pkmtol-run.json"])
 
 
 def test_fosm_tolerance_formula():

@@ -96,7 +96,11 @@ def test_allocate_method_exact(tmp_path, capsys):
         (["--target", "0mm"], "Δλ* must be positive"),
         (["--target", "5 furlongs"], "unknown unit"),
         (["--beta", "0"], "β must be positive"),
-        (["--samples", "0"], "samples must be an integer ≥ 1"),
+        (["--samples", "0"], "--samples 0: must be ≥ 2"),
+        (["--seed", "-1"], "--seed -1: must be ≥ 0"),
+        (["--target", "50"], "--target 50: '50' has no unit"),
+        (["--criterion", "worst"], "--criterion worst: only --method exact reads it"),
+        (["--samples", "1000000000000"], "--samples 1000000000000: needs about"),
     ],
 )
 def test_allocate_bad_requests_exit_2_and_write_nothing(tmp_path, capsys, args, needle):

@@ -529,7 +529,8 @@ def test_fixed_joint_is_locked_without_visuals(tiny):
     "text,needle",
     [
         ("<robot", "malformed XML"),
-        ("<robot name='x'><joint name='j' type='revolute'/></robot>", "Pinocchio cannot read it"),
+        ("<robot name='x'><joint name='j' type='revolute'/></robot>", "joint 'j': no <parent link"),
+        ("<robot name='x'><link name='a'/><link name='a'/></robot>", "link 'a' is defined twice"),
     ],
 )
 def test_unreadable_tree(tmp_path, text, needle):

@@ -490,3 +490,27 @@ def test_delta_exports_its_internal_loops_as_point_anchors(delta):
     )
     assert np.abs(mech.constraint_models(models).residuals(cm.q(actual.q))).max() < 1e-12
     assert np.abs(cm.residuals(cm.q(actual.q))).max() > 1e-7
+
+
+def test_delta_calibrated_urdfs_carry_the_loop_errors(tmp_path, delta):
+    """Calibrated URDFs of the Delta (every raw error, loops' too) reload as the perturbed machine."""
+    from pkmtol.calibration.machine import Machine
+    from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs
+
+    mech, chain = delta
+    ps = parameter_set(mech, "urdf")
+    estimate = np.random.default_rng(2).normal(0.0, 1e-4, len(ps))
+    for name, text in calibrated_urdfs(mech, ps, estimate).items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    (tmp_path / "mechanism.toml").write_text(calibrated_toml(mech, ps, estimate), encoding="utf-8")
+    calibrated = load_mechanism(tmp_path)
+    assert [lp.name for lb in calibrated.limbs for lp in lb.loops] == ["rod2"] * 3
+    machine = Machine(mech, ps, estimate)
+    pose = chain.inverse(np.array([0.15, 0.1, -0.9]), chain.home())
+    u = pose.q_all[chain.actuated_idx]
+    truth = machine.forward(u, pose.q_all)
+    cchain = ClosedChain(calibrated, check_limits=False)
+    # the zero offsets are in the calibrated joint origins: the same readings, readings = actual − offset
+    again = cchain.forward(u, truth.q_all - machine.offsets)
+    np.testing.assert_allclose(again.p_m, truth.p_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(again.oMp.rotation, truth.oMp.rotation, rtol=0, atol=1e-12)

@@ -28,12 +28,12 @@ from pkmtol.error_model.separation import null_space
 from pkmtol.error_model.sweep import sweep
 from pkmtol.kinematics.check import check_mechanism
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.families import draft
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import summary_text, to_json_dict
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
-import derive_dh  # noqa: E402
 from dh_to_urdf import generate  # noqa: E402
 
 MACHINES = ("tricept", "sprint_z3", "exechon")
@@ -65,15 +65,14 @@ def limbs_with(name: str, kind: str, cls: str) -> set[str]:
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_tables_are_the_derived_ones_and_urdfs_are_generated(name):
-    """mechanism.toml holds what scripts/derive_dh.py prints; the URDFs are dh_to_urdf.py's output."""
+    """mechanism.toml holds what the family derives from its dimensions; the URDFs are dh_to_urdf.py's."""
     mech, _ = machine(name)
-    derived = derive_dh.MACHINES[name]()
-    assert [d[0] for d in derived] == [lb.name for lb in mech.limbs]
-    for (_, axes, home, platform, lim), limb in zip(derived, mech.limbs, strict=True):
-        table, home = derive_dh.limb_table(limb.name, axes, home, platform, lim)
-        np.testing.assert_allclose(limb.dh.links, table.links, atol=1e-7)
-        np.testing.assert_allclose(limb.dh.end, table.end, atol=1e-7)
-        np.testing.assert_allclose(limb.home, home, atol=5e-6)
+    derived = draft(name).limbs
+    assert [d.name for d in derived] == [lb.name for lb in mech.limbs]
+    for d, limb in zip(derived, mech.limbs, strict=True):
+        np.testing.assert_allclose(limb.dh.links, d.table.links, atol=1e-7)
+        np.testing.assert_allclose(limb.dh.end, d.table.end, atol=1e-7)
+        np.testing.assert_allclose(limb.home, d.home, atol=5e-6)
     for path, text in generate(REPO / "robots" / name).items():
         assert path.read_text(encoding="utf-8") == text, f"{path} is stale: run scripts/dh_to_urdf.py"
 

@@ -7,7 +7,7 @@ programmatically.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +51,28 @@ class MechanismFormatError(PkmtolError):
         super().__init__(f"{self.path}:{where} {problem}")
 
 
+class UnknownKeyError(MechanismFormatError):
+    """A key of the mechanism description is not one pkmtol reads (misspelt, or in the wrong table).
+
+    Attributes:
+        path: The offending file.
+        key: Dotted key of the unknown entry (e.g. ``design.targte``).
+        known: The keys that table may hold.
+        suggestion: The closest known key (None if nothing is close).
+    """
+
+    def __init__(self, path: Path | str, key: str, known: Iterable[str], suggestion: str | None) -> None:
+        self.known = tuple(sorted(known))
+        self.suggestion = suggestion
+        hint = f"did you mean '{suggestion}'? " if suggestion else ""
+        super().__init__(
+            path,
+            key,
+            f"unknown key; {hint}this table takes {', '.join(self.known) or 'no keys'} "
+            "(docs/mechanism-format.md)",
+        )
+
+
 class URDFError(PkmtolError):
     """A limb URDF is missing, malformed, or does not describe a serial limb pkmtol can use.
 
@@ -64,6 +86,40 @@ class URDFError(PkmtolError):
         self.path = None if path is None else Path(path)
         where = f" ({self.path})" if self.path is not None else ""
         super().__init__(f"limb '{limb}'{where}: {problem}")
+
+
+class DHMismatchError(URDFError):
+    """A limb URDF disagrees with the D–H table it was generated from (``[limbs.dh]``).
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        joint: The first joint (or platform attachment) that differs.
+        what: What differs (``origin``, ``axis``, ``type``, ``name``, ``limits``).
+        difference: Size of the difference (m and rad for an origin, else 0).
+        command: The command that regenerates the URDF from the table.
+    """
+
+    def __init__(
+        self,
+        limb: str,
+        path: Path | str | None,
+        joint: str,
+        what: str,
+        detail: str,
+        command: str,
+        difference: float = 0.0,
+    ) -> None:
+        self.joint = joint
+        self.what = what
+        self.difference = difference
+        self.command = command
+        super().__init__(
+            limb,
+            path,
+            f"joint '{joint}': {what} in the URDF and in the [limbs.dh] table of mechanism.toml "
+            f"differ ({detail}); regenerate the URDF with `{command}` (or fix the table)",
+        )
 
 
 class UnknownJointError(PkmtolError):
@@ -102,28 +158,18 @@ class PlatformMismatchError(PkmtolError):
         super().__init__(
             f"limb '{limb}': its platform frame cannot be made to coincide with limb "
             f"'{reference}' (closest mismatch {distance_m * 1e3:.3g} mm, {angle_rad:.3g} rad); "
-            "check that every limb URDF ends in the same platform link placed at the same "
-            "platform frame"
+            "check the limbs' home values in mechanism.toml, and that every limb URDF ends in the "
+            "same platform link placed at the same platform frame"
         )
 
 
 class LoopMismatchError(PlatformMismatchError):
-    """An internal loop of a limb cannot be closed near ``home``.
-
-    Attributes:
-        limb: The limb.
-        loop: The loop's name.
-        distance_m: Translation gap [m].
-        angle_rad: Rotation gap [rad] (0 for a ``3d`` loop).
-    """
+    """An internal loop of a limb cannot be closed near ``home`` (the parent's attributes, and ``loop``)."""
 
     def __init__(
         self, limb: str, loop: str, frames: tuple[str, str], distance_m: float, angle_rad: float
     ) -> None:
-        self.limb = limb
-        self.loop = loop
-        self.distance_m = distance_m
-        self.angle_rad = angle_rad
+        self.limb, self.loop, self.distance_m, self.angle_rad = limb, loop, distance_m, angle_rad
         PkmtolError.__init__(
             self,
             f"limb '{limb}': its loop '{loop}' ({frames[0]} ↔ {frames[1]}) cannot be closed near home "
@@ -218,6 +264,24 @@ class SingularPoseError(KinematicsError):
         )
 
 
+class RobotCheckError(KinematicsError):
+    """A generated robot does not pass ``pkmtol check`` with the dimensions given (nothing is written).
+
+    Attributes:
+        family: The mechanism family.
+        problems: What the check found (unreachable points, wrong mobility).
+    """
+
+    def __init__(self, family: str, problems: Sequence[str]) -> None:
+        self.family = family
+        self.problems = tuple(problems)
+        super().__init__(
+            f"the {family} with these dimensions does not pass `pkmtol check`: {'; '.join(self.problems)}; "
+            "change the dimensions, the strokes (--leg-stroke) or the task space (--task-radius, --task-z); "
+            "nothing was written"
+        )
+
+
 class MobilityError(KinematicsError):
     """The actuation and constraint wrenches do not span 6 dimensions, or an actuator cannot act.
 
@@ -233,12 +297,90 @@ class InvalidRequestError(PkmtolError, ValueError):
     """A numeric request is out of range (non-positive target, beta or sample count, ...)."""
 
 
+class InvalidArgumentError(InvalidRequestError):
+    """An argument of a public function, an option field or a command-line value is wrong.
+
+    Attributes:
+        argument: Name of the argument as the caller wrote it (``target_m``,
+            ``TaskSpace.radius_m``, ``--samples``).
+        value: The value given.
+    """
+
+    def __init__(self, argument: str, value: object, problem: str) -> None:
+        self.argument = argument
+        self.value = value
+        self.problem = problem
+        super().__init__(_argument_message(argument, value, problem))
+
+    def renamed(self, argument: str) -> InvalidArgumentError:
+        """The same error naming the argument as ``argument`` (e.g. the option ``--samples``)."""
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new.argument = argument
+        new.args = (_argument_message(argument, self.value, self.problem),)
+        return new
+
+
+def _argument_message(argument: str, value: object, problem: str) -> str:
+    shown = f"{argument} {value}" if argument.startswith("--") else f"{argument} = {_short_repr(value)}"
+    return f"{shown}: {problem}"
+
+
+class ResourceLimitError(InvalidArgumentError):
+    """A request would need more memory than the machine has; refused before any work starts.
+
+    Attributes:
+        estimate_bytes: Memory the request would need (estimate) [bytes].
+        available_bytes: Memory available [bytes].
+    """
+
+    def __init__(
+        self, argument: str, value: object, estimate_bytes: float, available_bytes: float, hint: str
+    ) -> None:
+        self.estimate_bytes = float(estimate_bytes)
+        self.available_bytes = float(available_bytes)
+        super().__init__(
+            argument,
+            value,
+            f"needs about {_gb(estimate_bytes)} of memory, more than the {_gb(available_bytes)} "
+            f"available; {hint}",
+        )
+
+
+def _gb(n: float) -> str:
+    if n >= 1e12:
+        return f"{n / 1e12:,.3g} TB" if n < 1e15 else f"{n / 1e12:,.0f} TB"
+    return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
+
+
+def _short_repr(value: object, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class OutputError(PkmtolError):
     """An output file or folder cannot be written. Nothing has been written when this is raised."""
 
     def __init__(self, path: Path | str, problem: str) -> None:
         self.path = Path(path)
         super().__init__(f"cannot write {self.path}: {problem}")
+
+
+class OutputLockedError(OutputError):
+    """Another pkmtol run is writing into the same output folder.
+
+    Attributes:
+        path: The output folder.
+        pid: Process id of the other run (None if unknown).
+    """
+
+    def __init__(self, path: Path | str, pid: int | None) -> None:
+        self.pid = pid
+        who = f"process {pid}" if pid is not None else "another process"
+        super().__init__(
+            path,
+            f"{who} is writing a run into this folder; wait for it to finish or choose another --out",
+        )
 
 
 def _fmt_mm(p_m: np.ndarray) -> str:
@@ -370,6 +512,35 @@ class SweepSpecError(PkmtolError):
     def __init__(self, spec: str, problem: str) -> None:
         self.spec = spec
         super().__init__(f"--vary {spec!r}: {problem}")
+
+
+# --- warnings -----------------------------------------------------------------------------------
+
+
+class PkmtolWarning(UserWarning):
+    """Base class of pkmtol's warnings: the input is used, but something in it is dropped or odd."""
+
+
+class MissingMeshWarning(PkmtolWarning):
+    """A visual mesh a limb URDF names does not exist: that visual is left out of the 3D scene.
+
+    The accuracy results do not depend on visuals; the warning says which file is missing.
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        mesh: The mesh file name as the URDF gives it.
+    """
+
+    def __init__(self, limb: str, path: Path | str | None, mesh: str) -> None:
+        self.limb = limb
+        self.path = None if path is None else Path(path)
+        self.mesh = mesh
+        where = f" ({self.path})" if self.path is not None else ""
+        super().__init__(
+            f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
+            "(results are not affected); fix the filename or put the mesh next to the URDF"
+        )
 
 
 # --- calibration ------------------------------------------------------------------------------

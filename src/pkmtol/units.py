@@ -17,49 +17,75 @@ LENGTH_UNITS = {"m": 0, "mm": -3, "um": -6, "µm": -6, "μm": -6}
 
 #: Display scale of each SI unit in tables: (factor from SI, display unit).
 DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+#: The table unit systems (``--units``): ``mm`` (mm and mrad, the default) or ``um`` (µm, µrad).
+DISPLAY_UNITS = {"mm": DISPLAY, "um": {"m": (1e6, "µm"), "rad": (1e6, "µrad")}}
 
 _NUMBER_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµμ]*)\s*$")
 
 
 def parse_length(value: str | float | int, what: str = "length") -> float:
-    """Parse a length such as ``"0.05 mm"``, ``"50um"`` or ``5e-5`` (bare numbers are metres).
+    """Parse a length such as ``"0.05 mm"``, ``"50um"`` or ``"5e-5 m"``; a number is metres.
+
+    Text must carry its unit: ``"50"`` is refused (it could mean 50 m or 50 µm).
 
     Returns:
         The length [m].
 
     Raises:
-        InvalidRequestError: the text is not a number with a known length unit.
+        InvalidRequestError: the text is not a number with a known length unit, or not finite.
 
     >>> parse_length("0.05 mm")
     5e-05
     >>> parse_length("50 um")
     5e-05
     """
-    if isinstance(value, bool):
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
         raise InvalidRequestError(f"{what}: expected a length such as '0.05 mm', got {value!r}")
     if isinstance(value, int | float):
+        if not math.isfinite(value):
+            raise InvalidRequestError(f"{what}: expected a finite length, got {value!r}")
         return float(value)
     m = _NUMBER_UNIT.match(str(value))
     if not m:
         raise InvalidRequestError(f"{what}: cannot read {value!r}; write it as e.g. '0.05 mm' or '50 um'")
     number, unit = m.groups()
-    unit = unit or "m"
+    if not unit:
+        raise InvalidRequestError(
+            f"{what}: {value!r} has no unit; write it with one, e.g. '{number} um' or '{number} mm' "
+            f"(units: {', '.join(LENGTH_UNITS)})"
+        )
     if unit not in LENGTH_UNITS:
         raise InvalidRequestError(
             f"{what}: unknown unit {unit!r} in {value!r}; use one of {', '.join(LENGTH_UNITS)}"
         )
     # decimal scaling, so that "50 um" is the double nearest to 5e-5, not 50 × 1e-6
-    return float(Decimal(number).scaleb(LENGTH_UNITS[unit]))
+    try:
+        result = float(Decimal(number).scaleb(LENGTH_UNITS[unit]))
+    except ArithmeticError:
+        result = math.inf
+    if not math.isfinite(result):
+        raise InvalidRequestError(f"{what}: {value!r} is too large to be a length")
+    return result
 
 
-def display(value_si: float, unit_si: str) -> float:
-    """Convert an SI value of unit ``"m"`` or ``"rad"`` to its display unit (mm, mrad)."""
-    return value_si * DISPLAY[unit_si][0]
+def display(value_si: float, unit_si: str, units: str = "mm") -> float:
+    """Convert an SI value of unit ``"m"`` or ``"rad"`` to its display unit (``units``: mm or um).
+
+    >>> display(5e-5, "m"), display(5e-5, "m", "um")
+    (0.05, 50.0)
+    """
+    return value_si * _system(units)[unit_si][0]
 
 
-def display_unit(unit_si: str) -> str:
-    """The display unit (``"mm"`` or ``"mrad"``) of an SI unit."""
-    return DISPLAY[unit_si][1]
+def display_unit(unit_si: str, units: str = "mm") -> str:
+    """The display unit (``"mm"``/``"mrad"``, or ``"µm"``/``"µrad"``) of an SI unit."""
+    return _system(units)[unit_si][1]
+
+
+def _system(units: str) -> dict[str, tuple[float, str]]:
+    if units not in DISPLAY_UNITS:
+        raise InvalidRequestError(f"units: unknown table units {units!r}; use {' or '.join(DISPLAY_UNITS)}")
+    return DISPLAY_UNITS[units]
 
 
 #: Angle units and their factor to the radian.

@@ -2,7 +2,9 @@
 
 ``pkmtol check robots/<robot>`` loads and validates a mechanism and prints its structure, mobility,
 constraints and task-space reachability (:mod:`pkmtol.kinematics.check`). Every pkmtol error is printed as
-``pkmtol: error: <message>`` on stderr with exit code 2; a check that finds problems exits 1.
+``pkmtol: error: <message>`` on stderr with exit code 2 (running out of memory too); a check that
+finds problems exits 1. Warnings (:class:`~pkmtol.exceptions.PkmtolWarning`, e.g. a missing mesh)
+are printed as ``pkmtol: warning: <message>``.
 
 To add a subcommand, write a module ``pkmtol/cli/<name>.py`` with ``add(subparsers)`` that
 registers its arguments and sets ``run=`` to a function ``(args) -> int``, and list it in
@@ -13,15 +15,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import TextIO
 
 from pkmtol import __version__
-from pkmtol.cli import allocate, calibrate, check, errors, show, sweep
+from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
 from pkmtol.cli.common import EXIT_ERROR
-from pkmtol.exceptions import PkmtolError
+from pkmtol.exceptions import PkmtolError, PkmtolWarning
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
-SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep)
+SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep, new)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -34,15 +38,51 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit code: 0 on success, 1 if a check found problems, 2 on a pkmtol error.
 
     """
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", PkmtolWarning)
+        warnings.showwarning = _show_warning
+        try:
+            return run(argv)
+        except PkmtolError as err:
+            print(f"pkmtol: error: {err}", file=sys.stderr)
+            return EXIT_ERROR
+        except MemoryError:
+            print(
+                "pkmtol: error: out of memory; ask for fewer --samples or --verification-poses, "
+                "or a coarser task-space grid",
+                file=sys.stderr,
+            )
+            return EXIT_ERROR
+        except BrokenPipeError:  # output piped into `head` and closed early
+            sys.stderr.close()
+            return 0
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Run the command line like :func:`main`, but let a :class:`~pkmtol.exceptions.PkmtolError` propagate.
+
+    For callers (and tests) that want the exception itself rather than its printed message.
+    """
     args = _parser().parse_args(argv)
-    try:
-        return int(args.run(args))
-    except PkmtolError as err:
-        print(f"pkmtol: error: {err}", file=sys.stderr)
-        return EXIT_ERROR
-    except BrokenPipeError:  # output piped into `head` and closed early
-        sys.stderr.close()
-        return 0
+    return int(args.run(args))
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """Show pkmtol's warnings as one line each, ``pkmtol: warning: <message>``, on stderr; others as usual."""
+    if not issubclass(category, PkmtolWarning):
+        _SHOW_WARNING(message, category, filename, lineno, file, line)
+        return
+    print(f"pkmtol: warning: {message}", file=sys.stderr if file is None else file)
+
+
+_SHOW_WARNING = warnings.showwarning
 
 
 def _parser() -> argparse.ArgumentParser:

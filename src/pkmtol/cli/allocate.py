@@ -7,12 +7,22 @@ import sys
 from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
-from pkmtol.cli.common import add_executor_options, executor_from
+from pkmtol.cli.common import (
+    OPTION_OF_FIELD,
+    add_executor_options,
+    executor_from,
+    named_as_options,
+    show_progress,
+    target_option,
+)
+from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
-from pkmtol.exceptions import FiguresError
+from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.loader import load_mechanism
-from pkmtol.present.tables import check_output_folder, summary_text, write_outputs
-from pkmtol.units import parse_angle, parse_length
+from pkmtol.present.outputs import render_tables
+from pkmtol.present.run_folder import RunFolder
+from pkmtol.present.tables import summary_text
+from pkmtol.units import parse_angle
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -23,13 +33,15 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         description="Error model, sensitive-pose search, FOSM tolerance allocation over the β "
         "series (the paper's Table III), verification by Monte Carlo (linear model and exact "
         "kinematics) and the traditional method for comparison. Prints the tables and writes "
-        "allocation.json, allocation.csv and allocation.md (and figures) into --out.",
+        "allocation.json, allocation.csv and allocation.md (and figures) into --out, all or "
+        "nothing: the previous run's files are replaced, pkmtol-run.json lists the run's files, "
+        "and a second run into the same --out at the same time is refused.",
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml")
     p.add_argument(
         "--target",
         default=None,
-        help="required accuracy Δλ* at P, e.g. 0.05mm or 50um (default: mechanism.toml)",
+        help="required accuracy Δλ* at P with its unit, e.g. 0.05mm or 50um (default: mechanism.toml)",
     )
     p.add_argument(
         "--beta",
@@ -41,7 +53,13 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--design-beta", type=float, default=None, help="β of the verified design")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
-    p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
+    p.add_argument(
+        "--samples",
+        type=int,
+        default=10_000,
+        help="Monte Carlo samples (default 10000); a count that would not fit in memory is refused "
+        "up front with the estimate",
+    )
     p.add_argument(
         "--exact-samples",
         type=int,
@@ -54,7 +72,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=2_000,
         help="distinct random task-space poses of the verification (default 2000)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, ≥ 0 (default 0)")
     p.add_argument(
         "--method",
         choices=["fosm", "exact", "cost"],
@@ -66,8 +84,15 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--criterion",
         choices=["worst", "every", "average"],
-        default="every",
-        help="with --method exact: reach Φ(β) at the worst pose, at every grid pose (default) or on average",
+        default=None,
+        help="only with --method exact: reach Φ(β) at the worst pose, at every grid pose (default) "
+        "or on average",
+    )
+    p.add_argument(
+        "--units",
+        choices=["mm", "um"],
+        default="mm",
+        help="units of the tolerance tables: mm and mrad (default) or um (µm and µrad)",
     )
     p.add_argument(
         "--compensation",
@@ -103,14 +128,18 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="also write the 3D scene as a self-contained HTML page to FILE",
     )
-    p.add_argument("--no-figures", action="store_true", help="do not write the PNG/SVG figures")
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="do not write the PNG/SVG figures (without matplotlib they are left out with a warning)",
+    )
     add_executor_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
-    target = None if args.target is None else parse_length(args.target, "--target")
+    target = target_option(args.target)
     betas = design_beta = None
     if args.beta is not None and len(args.beta) == 1:
         design_beta = args.beta[0]
@@ -118,48 +147,88 @@ def _run(args: argparse.Namespace) -> int:
         betas = tuple(args.beta)
     if args.design_beta is not None:
         design_beta = args.design_beta
-    opts = DesignOptions(
-        target_m=target,
-        betas=betas,
-        design_beta=design_beta,
-        parameter_set=args.pset,
-        samples=args.samples,
-        verification_poses=args.verification_poses,
-        exact_samples=args.exact_samples,
-        seed=args.seed,
-        method=args.method,
-        criterion=args.criterion,
-        progress=not args.no_progress and sys.stderr.isatty(),
-        executor=executor_from(args),
-        compensation=args.compensation,
-        calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
-        orientation_target_rad=None
-        if args.orientation_target is None
-        else parse_angle(args.orientation_target, "--orientation-target"),
-        tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
-    )
+    if args.criterion is not None and args.method != "exact":
+        raise InvalidArgumentError(
+            "--criterion",
+            args.criterion,
+            f"only --method exact reads it; --method {args.method} would ignore it",
+        )
+    orientation = None
+    if args.orientation_target is not None:
+        try:
+            orientation = parse_angle(args.orientation_target, "--orientation-target")
+        except InvalidRequestError as err:
+            raise InvalidArgumentError(
+                "--orientation-target",
+                args.orientation_target,
+                str(err).removeprefix("--orientation-target: "),
+            ) from err
+    # one --beta value is the design β: name it as typed
+    names = {
+        **OPTION_OF_FIELD,
+        "design_beta": "--design-beta" if args.design_beta is not None else "--beta",
+        "orientation_target_rad": "--orientation-target",
+        "tool_axis": "--tool-axis",
+    }
+    with named_as_options(names):
+        opts = DesignOptions(
+            target_m=target,
+            betas=betas,
+            design_beta=design_beta,
+            parameter_set=args.pset,
+            samples=args.samples,
+            verification_poses=args.verification_poses,
+            exact_samples=args.exact_samples,
+            seed=args.seed,
+            method=args.method,
+            criterion=args.criterion or "every",
+            progress=show_progress(args.no_progress),
+            executor=executor_from(args),
+            compensation=args.compensation,
+            calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
+            orientation_target_rad=orientation,
+            tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
+        )
+        check_memory(mech, opts)
     out = args.out if args.out is not None else Path("out") / mech.name
-    check_output_folder(out)
-    result = allocate(mech, opts)
-    print(summary_text(result), end="")
+    if args.html is not None and not (args.html.parent or Path(".")).is_dir():
+        raise OutputError(args.html, f"folder {args.html.parent} does not exist")
+    with RunFolder(out) as run:
+        result = allocate(mech, opts)
+        # everything is rendered before anything is written: a failure leaves the folder as it was
+        files = render_tables(result, args.units)
+        if not args.no_figures:
+            files.update(_figures(result))
+        page = None
+        if args.html is not None:
+            from pkmtol.present.viewer.export import render_html
+
+            page = render_html(result, args.html)
+        outside = {} if page is None else {args.html: page.data}
+        written = run.write(files, outside)
+    print(summary_text(result, units=args.units), end="")
     print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
-    for path in write_outputs(result, out):
+    for path in written[: len(files)]:
         print(f"wrote {path}")
-    if not args.no_figures:
-        _write_figures(result, out)
-    view(result, args.html, args.view)
+    if page is not None:
+        spheres = page.export.scene.spheres
+        print(
+            f"wrote {args.html} ({page.export.bytes} bytes, {spheres.count if spheres else 0} error spheres)"
+        )
+    if args.view:
+        view(result, None, True)
     return 0
 
 
-def _write_figures(result: DesignResult, out: Path) -> None:
-    """Figures next to the tables; without matplotlib, say how to get them and carry on."""
-    from pkmtol.present.figures import write_figures
+def _figures(result: DesignResult) -> dict[str, bytes]:
+    """The figures in memory; without matplotlib, one warning line and none."""
+    from pkmtol.present.figures import render_figures
 
     try:
-        for path in write_figures(result, out):
-            print(f"wrote {path}")
+        return render_figures(result)
     except FiguresError as err:
         print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
+        return {}
 
 
 def view(result: DesignResult, html: Path | None, live: bool) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.cli.common import EXIT_PROBLEMS, mm
+from pkmtol.cli.common import EXIT_PROBLEMS, mm, show_progress
 from pkmtol.kinematics.check import CheckReport, JointReport, check_mechanism
 from pkmtol.model.loader import load_mechanism
 
@@ -26,11 +26,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "point is unreachable or the mobility differs from the number of actuators.",
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml (e.g. robots/r2rps_ups)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    report = check_mechanism(load_mechanism(args.robot))
+    report = check_mechanism(load_mechanism(args.robot), progress=show_progress(args.no_progress))
     print("\n".join(format_check(report)))
     return EXIT_PROBLEMS if report.problems else 0
 
@@ -103,10 +104,10 @@ def _describe_task_space(report: CheckReport) -> str:
     n = len(report.points)
     if ts.kind == "cylinder":
         per_layer = " + ".join(str(k) for k in (1, *ts.rings))
+        z0, z1 = (f"{round(1e3 * z, 1) + 0.0:.1f}" for z in ts.z_range_m)
         return (
-            f"cylinder radius {1e3 * ts.radius_m:.1f} mm about ({1e3 * ts.center_xy_m[0]:.1f}, "
-            f"{1e3 * ts.center_xy_m[1]:.1f}) mm, z {1e3 * ts.z_range_m[0]:.1f} to "
-            f"{1e3 * ts.z_range_m[1]:.1f} mm, {ts.layers} layers x ({per_layer}) = {n} points"
+            f"cylinder radius {1e3 * ts.radius_m:.1f} mm about {mm(np.array(ts.center_xy_m))}, "
+            f"z {z0} to {z1} mm, {ts.layers} layers x ({per_layer}) = {n} points"
         )
     return f"{n} listed points"
 

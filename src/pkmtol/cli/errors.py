@@ -6,8 +6,10 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.cli.common import mm, show_progress
 from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
+from pkmtol.exceptions import OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import overconstraint_lines, text_table
@@ -39,15 +41,19 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     )
     add_plan_options(p)
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
+    if args.json is not None and not (args.json.parent or Path(".")).is_dir():
+        raise OutputError(args.json, f"folder {args.json.parent} does not exist")
     settings = plan_settings(mech, args) if args.compensation == "calibrated" else None
-    table = mode_error_table(mech, args.pset, args.compensation, settings)
+    table = mode_error_table(
+        mech, args.pset, args.compensation, settings, progress=show_progress(args.no_progress)
+    )
     text = table.to_json()  # rendered before anything is printed or written
-    wp = table.worst_point_m * 1e3
     names = CLASSES if args.compensation == "ideal" else tuple(dict.fromkeys(table.classes))
     counts = {c: table.classes.count(c) for c in names}
     mode = "" if args.compensation == "ideal" else f" ({args.compensation} compensation)"
@@ -56,9 +62,7 @@ def _run(args: argparse.Namespace) -> int:
         + ", ".join(f"{counts[c]} {c}" for c in names)
     )
     what = "η_c" if args.compensation == "ideal" else "the toleranced errors"
-    print(
-        f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm"
-    )
+    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition
@@ -67,8 +71,9 @@ def _run(args: argparse.Namespace) -> int:
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True
     ):
+        # the unit of the sensitivities (P's displacement per unit error), not of the error itself
         unit = "µm/µm" if p.unit == "m" else "µm/µrad"
-        rows.append([p.name, p.unit, c, f"{s:.4f} {unit}", f"{su:.4f} {unit}"])
+        rows.append([p.name, unit, c, f"{s:.4f}", f"{su:.4f}"])
     print(text_table(rows))
     if args.json is not None:
         write_atomic(args.json, text.encode())

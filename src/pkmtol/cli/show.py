@@ -6,9 +6,11 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.allocate import view
+from pkmtol.cli.common import named_as_options, show_progress
+from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.exceptions import OutputError
 from pkmtol.model.loader import load_mechanism
-from pkmtol.present.tables import check_output_folder
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -26,20 +28,24 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=10_000, help="Monte Carlo samples (default 10000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
-    if args.html is not None:
-        check_output_folder(args.html.parent if str(args.html.parent) else Path("."))
-    opts = DesignOptions(
-        samples=args.samples,
-        exact_samples=0,
-        seed=args.seed,
-        parameter_set=args.pset,
-        verification_poses=min(2_000, args.samples),
-    )
+    if args.html is not None and not (args.html.parent or Path(".")).is_dir():
+        raise OutputError(args.html, f"folder {args.html.parent} does not exist")
+    with named_as_options():
+        opts = DesignOptions(
+            samples=args.samples,
+            exact_samples=0,
+            seed=args.seed,
+            parameter_set=args.pset,
+            verification_poses=max(1, min(2_000, args.samples)),
+            progress=show_progress(args.no_progress),
+        )
+        check_memory(mech, opts)
     result = allocate(mech, opts)
     view(result, args.html, args.html is None)
     return 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.exceptions import InvalidRequestError
 
 
@@ -41,6 +42,9 @@ def fosm_tolerances(
            [17.67766953,  8.83883476],
            [        inf,         inf]])
     """
+    omega = values.array("omega", omega, ndim=1)
+    values.number("target_m", target_m)
+    values.array("betas", betas)
     check_design(target_m, betas)
     if not np.isfinite(noise_variance) or noise_variance < 0:
         raise InvalidRequestError(f"the noise variance must be finite and ≥ 0, got {noise_variance!r}")

@@ -16,11 +16,13 @@ import numpy as np
 from pkmtol.calibration.maps import PoseMaps, pose_maps
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
+from pkmtol.design.budget import check_memory
 from pkmtol.design.exact import CRITERIA, ClaimRow, claimed_vs_true
 from pkmtol.design.fosm import check_design, fosm_tolerances, noise_floor_m
 from pkmtol.design.methods import MethodDesign, method_design_for
 from pkmtol.design.mode_verification import calibrated_exact, ideal_exact, verify_mode
 from pkmtol.design.modes import mode_setup
+from pkmtol.design.options import check_options
 from pkmtol.design.orientation import (
     OrientationDesign,
     tilt_moments,
@@ -34,7 +36,7 @@ from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivit
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.sweep import Sweep, guesses_near, sweep
-from pkmtol.exceptions import InvalidRequestError, NoiseFloorError
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, NoiseFloorError
 from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -95,6 +97,10 @@ class DesignOptions:
     orientation_target_rad: float | None = None
     tool_axis: tuple[float, float, float] | None = None
     executor: Executor | None = None
+
+    def __post_init__(self) -> None:
+        """Check every field (raises InvalidArgumentError naming it); betas become a tuple."""
+        check_options(self)
 
 
 @dataclass(frozen=True)
@@ -271,11 +277,22 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     """Run the main job on a mechanism.
 
     Raises:
+        InvalidArgumentError: ``mechanism`` or ``options`` of the wrong type.
+        ResourceLimitError: the run would not fit in memory (:mod:`pkmtol.design.budget`).
         InvalidRequestError: non-positive target, β, or sample counts; unknown options.
         NoiseFloorError: under ``calibrated``, the tracker noise alone exceeds Δλ* at the design β.
         pkmtol.exceptions.KinematicsError: a task-space point is unreachable or singular.
     """
+    if not isinstance(mechanism, Mechanism):
+        raise InvalidArgumentError(
+            "mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism, from_models)"
+        )
+    if options is not None and not isinstance(options, DesignOptions):
+        raise InvalidArgumentError(
+            "options", options, "expected a pkmtol.DesignOptions, e.g. DesignOptions(samples=2000)"
+        )
     opt = options or DesignOptions()
+    check_memory(mechanism, opt)  # refuse up front what would not fit (ResourceLimitError)
     target, betas, design_beta = _check_options(mechanism, opt)
     axis, alpha_target = _orientation_inputs(mechanism, opt)
     mode = opt.compensation

@@ -16,6 +16,7 @@ from typing import Protocol
 import numpy as np
 from scipy import optimize
 
+import pkmtol.values as values
 from pkmtol.design.cost import cost_model, cost_optimal
 from pkmtol.design.exact import criterion_value, scale_design
 from pkmtol.design.orientation import joint_covariance, joint_reliability
@@ -97,6 +98,8 @@ def method_design_for(
         InvalidRequestError: unknown method, ``cost`` with an orientation target, or a target
             no tolerance reaches.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("grid", grid, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
     maps = maps if maps is not None else mode_maps(grid, "ideal")
     r_star = float(reliability_fosm(design_beta))
     J = maps.position[:, :, unc]

@@ -138,17 +138,19 @@ def mode_error_table(
     kind: str | None,
     mode: str,
     settings: CalibrationSettings | None = None,
+    progress: bool = False,
 ) -> ErrorTable:
     """The ``pkmtol errors`` table in a compensation mode: its classes, sensitivities from its maps.
 
     The worst pose is the largest analytic σ[Δλ] for unit errors of the toleranced parameters; the
     sensitivity of each toleranced parameter is ``‖L_{:,i}‖`` there (``J`` under ``ideal``).
+    ``progress`` shows a progress bar over the grid.
     """
     if mode == "ideal":
-        return error_table(mechanism, kind)
+        return error_table(mechanism, kind, progress=progress)
     pset = parameter_set(mechanism, kind or default_set(mechanism))
     chain = ClosedChain(mechanism)
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain)
+    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=progress)
     classes = grid.classify()
     setup = mode_setup(mechanism, pset, grid, classes, mode, chain, settings)
     cols = setup.columns

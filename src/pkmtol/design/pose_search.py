@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments
 
 #: Samples drawn and evaluated at a time (up to it, one chunk: exactly the unchunked computation).
@@ -40,6 +41,9 @@ class PoseSearch:
 
 def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
     """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
+    J = values.array_of_shape("J", J, (None, 3, None))
+    values.count("samples", samples, low=2)
+    values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator (np.random.default_rng(seed))")
     m, _, n = J.shape
     if samples <= SEARCH_CHUNK:
         eta = rng.standard_normal((samples, n))

@@ -15,9 +15,12 @@ from typing import Any
 import numpy as np
 from scipy import special
 
+import pkmtol.values as values
+
 
 def reliability_fosm(beta: float | np.ndarray) -> np.ndarray:
     """The paper's ``R = Φ(β)`` (Eq. 13)."""
+    beta = values.array("beta", beta) if not isinstance(beta, int | float) else values.number("beta", beta)
     return np.asarray(special.ndtr(beta))
 
 
@@ -81,6 +84,8 @@ def exact_reliability(
     >>> round(r, 9)
     0.73853587
     """
+    covariance = values.array_of_shape("covariance", covariance, (3, 3))
+    values.number("threshold_m", threshold_m, positive=True)
     lam, vec = np.linalg.eigh(np.asarray(covariance, dtype=float))
     lam = np.clip(lam, 0.0, None)  # ascending: the largest variance on the polar axis
     if lam.max() <= 0.0:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import ConvergenceError, KinematicsError
@@ -218,6 +219,11 @@ def verify_all(
         KinematicsError: an exact sample failed for another reason than assembly (the first such
             sample in order); :class:`ConvergenceError` counts as unassembled.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("sweep_random", sweep_random, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
+    values.count("samples", samples, low=1)
+    values.count("exact_samples", exact_samples, low=0)
+    values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator")
     m = len(sweep_random.poses)
     sig = np.where(np.isfinite(sigma), sigma, 0.0)
     Jc = sweep_random.J[:, :, columns]  # (m, 3, k)
@@ -235,10 +241,10 @@ def verify_all(
                 owners.append(dist)
         bar = tqdm(total=len(tasks) * 1, desc="exact chunks", unit="chunk", disable=not progress, leave=False)
         parts: dict[str, list[np.ndarray]] = {d: [] for d in distributions}
-        for dist, (values, error) in zip(owners, imap_chunks(_exact_chunk, tasks, executor), strict=True):
+        for dist, (part, error) in zip(owners, imap_chunks(_exact_chunk, tasks, executor), strict=True):
             if error is not None:
                 raise error
-            parts[dist].append(values)
+            parts[dist].append(part)
             bar.update(1)
         bar.close()
         exact = {d: np.concatenate(parts[d]) for d in distributions}

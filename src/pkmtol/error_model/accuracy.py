@@ -11,9 +11,12 @@ import math
 import numpy as np
 from scipy import special
 
+import pkmtol.values as values
+
 
 def sensitivities(J: np.ndarray) -> np.ndarray:
     """``ω_i = ‖J[:, i]‖`` (n,) [m per m or m per rad] for ``J`` of shape (3, n)."""
+    J = values.array("J", J, ndim=2)
     return np.linalg.norm(J, axis=0)
 
 
@@ -35,6 +38,7 @@ def norm_moments(eigenvalues: np.ndarray) -> tuple[float, float]:
     >>> round(m, 6), round(s, 6)
     (0.797885, 0.60281)
     """
+    eigenvalues = values.array("eigenvalues", eigenvalues, ndim=1)
     lam = np.clip(np.asarray(eigenvalues, dtype=float), 0.0, None)
     if lam.size > 3:
         raise ValueError(f"norm_moments is for 3-D vectors; got {lam.size} eigenvalues")

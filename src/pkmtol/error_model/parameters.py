@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pkmtol.exceptions import InvalidRequestError
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.model.dh import dh_error_directions
 from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import Mechanism
@@ -130,6 +130,7 @@ def parameter_set(mechanism: Mechanism, kind: str = "urdf") -> ParameterSet:
     Raises:
         InvalidRequestError: unknown kind, or ``dh`` asked for a limb without a D–H table.
     """
+    _check_mechanism(mechanism)
     if kind == "urdf":
         per_limb = [_urdf_limb(i, limb) for i, limb in enumerate(mechanism.limbs)]
     elif kind == "dh":
@@ -153,6 +154,7 @@ def parameter_set(mechanism: Mechanism, kind: str = "urdf") -> ParameterSet:
 
 def default_set(mechanism: Mechanism) -> str:
     """``dh`` when every limb has a D–H table, else ``urdf``."""
+    _check_mechanism(mechanism)
     return "dh" if all(lb.dh is not None for lb in mechanism.limbs) else "urdf"
 
 
@@ -211,3 +213,10 @@ def _dh_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
                 params.append(ErrorParameter(f"δ{sym}_{{{idx},{num}}}", i, unit))
             cols.append(col)
     return params, np.column_stack(cols)
+
+
+def _check_mechanism(mechanism: object) -> None:
+    if not isinstance(mechanism, Mechanism):
+        raise InvalidArgumentError(
+            "mechanism", mechanism, "expected a pkmtol.Mechanism (pkmtol.load_mechanism)"
+        )

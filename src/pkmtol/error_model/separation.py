@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.error_model.limb_motion import loop_motion
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.twists import raw_columns_local, to_k_prime
@@ -136,6 +137,10 @@ def separate(
         SingularPoseError: W is singular (or nearly) at this pose.
         MobilityError: the actuation and constraint wrenches do not make a basis of 6 wrenches.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
+    values.instance("chain", chain, ClosedChain, "a pkmtol.ClosedChain of the mechanism")
+    values.instance("pose", pose, Pose, "a pkmtol.Pose (ClosedChain.inverse)")
     n = len(pset)
     twists, cols = [], np.zeros((6, n))
     W_a, W_c, act_limb, con_limb, lam = [], [], [], [], []

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.separation import Separation, separate_many
 from pkmtol.exceptions import KinematicsError
@@ -110,6 +111,9 @@ def sweep(
         KinematicsError: the error of the first point (in point order) that cannot be solved or
             separated — unreachable, outside a joint limit, or singular.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
+    points_m = values.array_of_shape("points_m", points_m, (None, 3))
     chain = chain or ClosedChain(mechanism)
     batch = BatchChain(mechanism, chain=chain)
     points = np.asarray(points_m, dtype=float).reshape(-1, 3)

@@ -10,6 +10,7 @@ import numpy as np
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
@@ -66,11 +67,16 @@ class ErrorTable:
 
 
 def error_table(
-    mechanism: Mechanism, kind: str | None = None, chain: ClosedChain | None = None
+    mechanism: Mechanism, kind: str | None = None, chain: ClosedChain | None = None, progress: bool = False
 ) -> ErrorTable:
-    """Classify every parameter over the task-space grid and take sensitivities at the worst pose."""
+    """Classify every parameter over the task-space grid and take sensitivities at the worst pose.
+
+    ``progress`` shows a progress bar over the grid (on stderr).
+    """
+    if not isinstance(mechanism, Mechanism):
+        raise InvalidArgumentError("mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism)")
     pset = parameter_set(mechanism, kind or default_set(mechanism))
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain)
+    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=progress)
     classes = grid.classify()
     unc = [i for i, c in enumerate(classes) if c == "uncompensatable"]
     cols = unc if unc else list(range(len(pset)))

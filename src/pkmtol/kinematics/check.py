@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from tqdm import tqdm
 
-from pkmtol.exceptions import KinematicsError
+from pkmtol.exceptions import InvalidArgumentError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.loops import frame_placements, loop_rows
 from pkmtol.model.limb import Limb
@@ -161,11 +162,12 @@ class CheckReport:
         return tuple(out)
 
 
-def check_mechanism(mechanism: Mechanism) -> CheckReport:
+def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport:
     """Check a mechanism at home and over its task-space grid.
 
     Args:
         mechanism: The mechanism (already validated by loading).
+        progress: Show a progress bar over the grid points (on stderr).
 
     Returns:
         The report; unreachable points are recorded in it, not raised.
@@ -174,6 +176,8 @@ def check_mechanism(mechanism: Mechanism) -> CheckReport:
         PlatformMismatchError: the limbs cannot be closed at home.
 
     """
+    if not isinstance(mechanism, Mechanism):
+        raise InvalidArgumentError("mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism)")
     chain = ClosedChain(mechanism)
     home_q = chain.home()
     closure_jacobian = chain._evaluate(home_q, None)[1]
@@ -183,7 +187,8 @@ def check_mechanism(mechanism: Mechanism) -> CheckReport:
 
     points = []
     q_prev = home_q
-    for target in mechanism.task_space.grid():
+    grid = mechanism.task_space.grid()
+    for target in tqdm(grid, desc="check", unit="point", disable=not progress, leave=False):
         point = _solve_point(chain, target, q_prev, home_q, passive)
         if point.q is not None:
             q_prev = point.q

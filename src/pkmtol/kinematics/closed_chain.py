@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.exceptions import (
     ConvergenceError,
     JointLimitError,
@@ -86,6 +87,7 @@ class ClosedChain:
         models: Sequence[pin.Model] | None = None,
         check_limits: bool = True,
     ) -> None:
+        values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism (pkmtol.load_mechanism)")
         self.mechanism = mechanism
         self.models = list(models) if models is not None else [lb.model for lb in mechanism.limbs]
         self.datas = [m.createData() for m in self.models]
@@ -277,9 +279,11 @@ class ClosedChain:
         """Newton's method on the free joints; returns (q, condition number, residual norm)."""
         q = np.array(q0, dtype=float)
         res_norm = prev_norm = np.inf
-        for _ in range(MAX_ITERATIONS):
+        for iteration in range(MAX_ITERATIONS):
             res, jac = self._evaluate(q, target)
             a = jac[:, free]
+            if not (np.isfinite(res).all() and np.isfinite(a).all()):  # overflow: no solution to refine
+                raise ConvergenceError(f"{what} (the closure equations overflowed)", np.inf, iteration)
             res_norm = float(np.max(np.abs(res)))
             # converged, or stalled at round-off level
             if res_norm < TOLERANCE or (res_norm < 1e-11 and res_norm >= prev_norm):

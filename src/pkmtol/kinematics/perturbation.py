@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.model.mechanism import Mechanism
 
 
@@ -29,6 +31,9 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
         Models with ``jointPlacements[j] · exp6(ε_j)``, platform frame ``placement · exp6(ε_e)``
         and loop frames ``placement · exp6(ε_loop)``.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    if isinstance(eps, str) or len(eps) != len(mechanism.limbs):
+        raise InvalidArgumentError("eps", eps, f"need {len(mechanism.limbs)} arrays, one per limb")
     out = []
     for limb, e in zip(mechanism.limbs, eps, strict=True):
         e = np.asarray(e, dtype=float)

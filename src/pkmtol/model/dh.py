@@ -20,11 +20,17 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
+from pkmtol.exceptions import DHMismatchError, InvalidArgumentError
+
 JOINT_TYPES = ("R", "P")
+#: A URDF generated from a D–H table must reproduce it to this [m, rad] (it is written to 1e-15).
+DH_MATCH_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -47,14 +53,35 @@ class DHTable:
     limits: np.ndarray
 
     def __post_init__(self) -> None:
-        n = len(self.joint_types)
-        if self.links.shape != (n + 1, 4):
-            raise ValueError(f"D–H table needs {n + 1} link rows for {n} joints, got {self.links.shape}")
-        if len(self.joint_names) != n or self.limits.shape != (n, 2):
-            raise ValueError("D–H table: joint_names and limits need one entry per joint")
-        bad = [t for t in self.joint_types if t not in JOINT_TYPES]
-        if bad:
-            raise ValueError(f"D–H joint types must be 'R' or 'P', got {bad}")
+        """Check the shapes and entries (raises InvalidArgumentError naming the field)."""
+        types = values.strings("DHTable.joint_types", self.joint_types)
+        bad = [t for t in types if t not in JOINT_TYPES]
+        if bad or not types:
+            raise InvalidArgumentError(
+                "DHTable.joint_types", self.joint_types, "expected 'R' or 'P' per joint"
+            )
+        n = len(types)
+        links = values.array("DHTable.links", self.links)
+        if links.shape != (n + 1, 4):
+            raise InvalidArgumentError(
+                "DHTable.links", f"shape {links.shape}", f"need {n + 1} rows (θ, d, a, φ) for {n} joints"
+            )
+        names = values.strings("DHTable.joint_names", self.joint_names)
+        if len(names) != n:
+            raise InvalidArgumentError(
+                "DHTable.joint_names", self.joint_names, f"need {n} names, one per joint"
+            )
+        limits = values.array("DHTable.limits", self.limits)
+        if limits.shape != (n, 2):
+            raise InvalidArgumentError(
+                "DHTable.limits", f"shape {limits.shape}", f"need {n} rows (lower, upper), one per joint"
+            )
+        end = values.vector("DHTable.end", self.end, 2)
+        object.__setattr__(self, "links", links)
+        object.__setattr__(self, "limits", limits)
+        object.__setattr__(self, "joint_types", types)
+        object.__setattr__(self, "joint_names", names)
+        object.__setattr__(self, "end", (float(end[0]), float(end[1])))
 
     @property
     def n_joints(self) -> int:
@@ -89,6 +116,67 @@ def forward(table: DHTable, q: np.ndarray) -> pin.SE3:
         else:
             m = m * pin.SE3(np.eye(3), np.array([0.0, 0.0, float(q[k])]))
     return m * origins[-1]
+
+
+def check_dh_matches(limb: Any, table: DHTable, command: str) -> None:
+    """Raise DHMismatchError unless the limb's URDF is the URDF form of its D–H ``table``.
+
+    Compared, joint by joint: the name, the type (R/P about the joint's z axis), the origin (to
+    :data:`DH_MATCH_TOLERANCE` in metres and radians) and the limits; then the platform attachment.
+
+    Args:
+        limb: The :class:`~pkmtol.model.limb.Limb` read from the URDF.
+        table: Its ``[limbs.dh]`` table.
+        command: The command that regenerates the URDF (quoted in the message).
+    """
+    model = limb.model
+
+    def mismatch(joint: str, what: str, detail: str, difference: float = 0.0) -> DHMismatchError:
+        return DHMismatchError(limb.name, limb.urdf_path, joint, what, detail, command, difference)
+
+    if model.nq != table.n_joints:
+        raise mismatch(
+            limb.joint_names[-1] if limb.joint_names else "-",
+            "number of joints",
+            f"{model.nq} joints in the URDF, {table.n_joints} in the table",
+        )
+    origins = link_origins(table)
+    for k in range(table.n_joints):
+        name, want = str(model.names[k + 1]), table.joint_names[k]
+        if name != want:
+            raise mismatch(name, "name", f"joint {k + 1} is '{name}' in the URDF, '{want}' in the table")
+        kind = table.joint_types[k]
+        shortname = model.joints[k + 1].shortname()
+        if shortname != ("JointModelRZ" if kind == "R" else "JointModelPZ"):
+            raise mismatch(
+                name, "type or axis", f"{shortname} in the URDF, a {kind} joint about z in the table"
+            )
+        _check_origin(model.jointPlacements[k + 1], origins[k], name, mismatch)
+        lo_hi = (float(model.lowerPositionLimit[k]), float(model.upperPositionLimit[k]))
+        diff = max(abs(lo_hi[0] - table.limits[k, 0]), abs(lo_hi[1] - table.limits[k, 1]))
+        if diff > DH_MATCH_TOLERANCE:
+            raise mismatch(
+                name,
+                "limits",
+                f"[{lo_hi[0]:.9g}, {lo_hi[1]:.9g}] in the URDF, "
+                f"[{table.limits[k, 0]:.9g}, {table.limits[k, 1]:.9g}] in the table (rad or m)",
+                diff,
+            )
+    _check_origin(model.frames[limb.platform_frame].placement, origins[-1], limb.attach_name, mismatch)
+
+
+def _check_origin(got: pin.SE3, want: pin.SE3, joint: str, mismatch: Any) -> None:
+    distance = float(np.linalg.norm(got.translation - want.translation))
+    angle = float(np.linalg.norm(pin.log3(want.rotation.T @ got.rotation)))
+    if max(distance, angle) > DH_MATCH_TOLERANCE:
+        xyz = " ".join(f"{x:.9g}" for x in got.translation)
+        txyz = " ".join(f"{x:.9g}" for x in want.translation)
+        raise mismatch(
+            joint,
+            "origin",
+            f"xyz ({xyz}) in the URDF, ({txyz}) from the table: {distance:.3g} m and {angle:.3g} rad apart",
+            max(distance, angle),
+        )
 
 
 def dh_error_directions(table: DHTable) -> list[list[tuple[str, int, np.ndarray]]]:

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.exceptions import UnknownJointError, URDFError
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError, UnknownJointError, URDFError
 from pkmtol.model.dh import DHTable
 
 #: Loop kinds: ``"6d"`` (two frames coincide) and ``"3d"`` (two points coincide).
@@ -129,6 +130,31 @@ def frame_id(model: pin.Model, name: str) -> int:
     return (body or ids)[0]
 
 
+def _check_joint_numbers(model: pin.Model, j: int, kind: str, limb: str, path: Path | None) -> None:
+    """Unit axis, finite origin and limits (``lower ≤ upper``) of joint ``j``, else URDFError."""
+    joint = model.joints[j]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(1))
+    s = np.asarray(jdata.S).reshape(6)
+    axis = s[3:] if kind == "R" else s[:3]
+    jname = model.names[j]
+    if not np.all(np.isfinite(s)) or abs(float(np.linalg.norm(axis)) - 1.0) > 1e-6:
+        raise URDFError(
+            limb,
+            path,
+            f"joint '{jname}': its axis {np.round(axis, 9).tolist()} is not a unit vector; give it a "
+            "direction of length 1 (e.g. 0 0 1)",
+        )
+    placement = model.jointPlacements[j]
+    if not (np.all(np.isfinite(placement.translation)) and np.all(np.isfinite(placement.rotation))):
+        raise URDFError(limb, path, f"joint '{jname}': its origin is not finite (nan or inf)")
+    lo, hi = float(model.lowerPositionLimit[j - 1]), float(model.upperPositionLimit[j - 1])
+    if np.isnan(lo) or np.isnan(hi) or lo > hi:
+        raise URDFError(
+            limb, path, f"joint '{jname}': its limits [{lo:g}, {hi:g}] are not a range lower ≤ upper"
+        )
+
+
 def joint_kind(shortname: str) -> str:
     """``"R"`` (bounded revolute), ``"P"`` (prismatic) or ``"?"`` for a Pinocchio joint short name."""
     if shortname.startswith("JointModelR") and "Unbounded" not in shortname and "RUB" not in shortname:
@@ -143,13 +169,18 @@ def make_limb(
     model: pin.Model,
     actuated: list[str],
     platform_link: str,
-    home: Sequence[float] | None,
+    home: Sequence[float] | np.ndarray | None,
     path: Path | None,
     dh: DHTable | None = None,
     visual_model: Any = None,
     loops: Sequence[tuple[str, str, str, str]] = (),
 ) -> Limb:
     """Validate a limb model and wrap it.
+
+    Checked: every joint is a 1-DOF revolute or prismatic joint with a unit axis, finite origin
+    and limits; the chain does not branch (unless ``loops`` are given: then every joint lies on a
+    path to the platform or a loop frame); the platform link is at its end; the actuated names
+    exist (at most one); ``home`` has one finite value per joint; the loops are well formed.
 
     Args:
         name: Limb name.
@@ -163,10 +194,18 @@ def make_limb(
         loops: Internal loops ``(name, frame_a, frame_b, kind)`` with ``kind`` ``"6d"`` or ``"3d"``.
 
     Raises:
-        URDFError: a joint that is not 1-DOF, a branch without loops, a joint on no path to the
-            platform or a loop frame, a bad loop, or a wrong ``home``.
+        URDFError: a joint that is not 1-DOF or has bad numbers, a branch without loops, a joint on
+            no path to the platform or a loop frame, a bad loop, or a wrong ``home``.
         UnknownJointError: an actuated joint is not in the model.
+        InvalidArgumentError: a name or ``model`` of the wrong type.
     """
+    values.text("limb name", name)
+    if not isinstance(model, pin.Model):
+        raise InvalidArgumentError(f"model of limb '{name}'", model, "expected a pinocchio.Model")
+    actuated = list(values.strings(f"actuated joints of limb '{name}'", actuated))
+    values.text("platform frame", platform_link)
+    if model.njoints < 2:
+        raise URDFError(name, path, "the limb has no moving joint (a limb needs at least one)")
     for j in range(1, model.njoints):
         kind = joint_kind(model.joints[j].shortname())
         if kind == "?" or model.joints[j].nq != 1:
@@ -184,9 +223,11 @@ def make_limb(
                 f"joint '{model.names[j]}' branches: a limb without internal loops must be a serial "
                 "chain (close each extra branch by a loop, [[limbs.loops]] in mechanism.toml)",
             )
-    if model.njoints < 2:
-        raise URDFError(name, path, "the limb has no moving joint")
-    if not model.existFrame(platform_link):
+        _check_joint_numbers(model, j, kind, name, path)
+    named = [i for i, f in enumerate(model.frames) if f.name == platform_link]
+    # the link of that name (a joint may share it); a limb cut from a closed-loop tree has a frame
+    bodies = [i for i in named if model.frames[i].type == pin.FrameType.BODY] or named
+    if not bodies:
         raise URDFError(
             name,
             path,
@@ -194,7 +235,7 @@ def make_limb(
             + ", ".join(f.name for f in model.frames if f.type == pin.FrameType.BODY)
             + ")",
         )
-    fid = model.getFrameId(platform_link)
+    fid = bodies[0]
     if not loops and model.frames[fid].parentJoint != model.njoints - 1:
         raise URDFError(name, path, f"platform link '{platform_link}' is not at the end of the chain")
     limb_loops = _limb_loops(name, model, path, fid, loops, dh) if loops else ()
@@ -217,7 +258,7 @@ def make_limb(
     if home is None:
         home_arr = np.zeros(model.nq)
     else:
-        home_arr = np.asarray(home, dtype=float)
+        home_arr = values.array(f"home of limb '{name}'", home)
         if home_arr.shape != (model.nq,):
             raise URDFError(name, path, f"home has {home_arr.size} values for {model.nq} joints")
     return Limb(

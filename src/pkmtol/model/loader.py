@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -10,14 +11,16 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, MechanismFormatError
 from pkmtol.model import closed_loop, mjcf
-from pkmtol.model.dh import DHTable
+from pkmtol.model.dh import DHTable, check_dh_matches
+from pkmtol.model.keys import check_keys
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
-from pkmtol.model.reading import TomlReader, load_urdf
-from pkmtol.model.taskspace import TaskSpace
+from pkmtol.model.reading import TomlReader, check_finite, load_urdf, read_text
+from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
 from pkmtol.units import parse_angle, parse_length
+from pkmtol.values import MAX_LENGTH_M
 
 
 def load_mechanism(
@@ -41,12 +44,20 @@ def load_mechanism(
             :meth:`Mechanism.from_limbs`).
 
     Raises:
-        MechanismFormatError: the folder has no mechanism.toml, or a key is missing or mistyped.
-        URDFError: a limb URDF is missing, malformed or unusable.
+        InvalidArgumentError: ``folder`` is not a path.
+        MechanismFormatError: the folder has no mechanism.toml, or a key is missing, mistyped,
+            not finite (``nan``, ``inf``) or unknown (:class:`UnknownKeyError`, with a "did you
+            mean"; the known keys are in :mod:`pkmtol.model.keys`).
+        URDFError: a limb URDF is missing, malformed or unusable; :class:`DHMismatchError` when it
+            disagrees with the limb's ``[limbs.dh]`` table.
         UnknownJointError: an actuated joint is not in its limb.
         PlatformMismatchError: the limbs' platform frames do not coincide at ``home``.
         ClosedLoopError, MJCFError (and subclasses): a tree or MJCF file pkmtol cannot cut into limbs.
     """
+    if isinstance(folder, bool) or not isinstance(folder, str | os.PathLike):
+        raise InvalidArgumentError(
+            "folder", folder, "expected the path of a robot folder, e.g. 'robots/r2rps_ups'"
+        )
     folder = Path(folder)
     path = folder / "mechanism.toml"
     if doc is not None:
@@ -59,8 +70,9 @@ def load_mechanism(
         raise MechanismFormatError(
             path, "-", "file not found; a robot folder needs a mechanism.toml (see docs/mechanism-format.md)"
         )
+    text = read_text(path, lambda problem: MechanismFormatError(path, "-", problem))
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise MechanismFormatError(path, "-", f"not valid TOML: {err}") from err
     return _from_doc(folder, path, doc, urdf_texts or {}, check_home_closure)
@@ -69,10 +81,16 @@ def load_mechanism(
 def _from_doc(
     folder: Path, path: Path, doc: dict[str, Any], urdf_texts: Mapping[str, str], check_home_closure: bool
 ) -> Mechanism:
+    check_keys(path, doc)
+    check_finite(path, doc)
     r = TomlReader(path, doc)
     name = r.get("name", str)
+    if not name.strip():
+        r.fail("name", "must not be empty")
     platform_link = r.get("platform_link", str, default="platform")
-    p_ref = r.vector("reference_point.position_m", 3)
+    r.get("base_link", str, default="base")
+    r.get("description", str, default="")
+    p_ref = r.lengths("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
     if kind not in ("position", "planar"):
         r.fail(
@@ -96,12 +114,25 @@ def _from_doc(
                 "[z, z] and normal [0, 0, 1], or coplanar points)",
             )
     target = r.get("design.target", (str, float, int), default="0.05 mm")
+    if not isinstance(target, str):
+        r.fail(
+            "design.target",
+            f'write the unit with the number, e.g. target = "{target} mm" or "{target} um"',
+        )
     try:
         target_m = parse_length(target, "design.target")
-    except Exception as err:
+    except InvalidRequestError as err:
         r.fail("design.target", str(err))
-    betas = tuple(float(b) for b in r.array("design.beta", default=list(DEFAULT_BETAS)))
+    if target_m <= 0:
+        r.fail("design.target", f"the required accuracy must be positive, got {target!r}")
+    beta_arr = r.array("design.beta", default=list(DEFAULT_BETAS))
+    if beta_arr.ndim != 1 or beta_arr.size == 0 or np.any(beta_arr <= 0):
+        r.fail("design.beta", f"expected a list of positive numbers, got {beta_arr.tolist()!r}")
+    betas = tuple(float(b) for b in beta_arr)
     design_beta = float(r.get("design.design_beta", (float, int), default=2.0))
+    if design_beta <= 0:
+        r.fail("design.design_beta", f"β must be positive, got {design_beta!r}")
+    cost = read_cost(r)
     design_extra: dict[str, object] = {}
     alpha = r.get("design.orientation_target", str, default=None)
     if alpha is not None:
@@ -131,16 +162,29 @@ def _from_doc(
         r.fail(
             "limbs", "a parallel mechanism needs at least two [[limbs]] (or a [closed_loop] or [mjcf] table)"
         )
+    seen: dict[str, int] = {}
     for i, ld in enumerate(limbs_doc):
+        if not isinstance(ld, dict):
+            r.fail(f"limbs[{i}]", "expected a [[limbs]] table")
         lr = TomlReader(path, ld, prefix=f"limbs[{i}].")
         lname = lr.get("name", str)
+        if not lname.strip():
+            lr.fail("name", "must not be empty")
+        if lname in seen:
+            lr.fail("name", f"limb name {lname!r} is also used by limbs[{seen[lname]}]; names must be unique")
+        seen[lname] = i
         urdf = folder / lr.get("urdf", str)
-        actuated = lr.get("actuated", list, default=[])
-        home = lr.get("home", list, default=None)
+        actuated = lr.strings("actuated", default=[])
+        home = lr.lengths("home") if "home" in ld else None
+        if home is not None and home.ndim != 1:
+            lr.fail("home", f"expected a list of numbers, one per joint, got {ld['home']!r}")
         dh = read_dh(lr) if "dh" in ld else None
         loops = read_loops(lr) if "loops" in ld else []
         model, visual = load_urdf(lname, urdf, urdf_texts.get(lname))
-        limbs.append(make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual, loops))
+        limb = make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual, loops)
+        if dh is not None:
+            check_dh_matches(limb, dh, f"python scripts/dh_to_urdf.py {folder}")
+        limbs.append(limb)
     return Mechanism.from_limbs(
         name,
         limbs,
@@ -152,7 +196,7 @@ def _from_doc(
         root=folder,
         description=r.get("description", str, default=""),
         extra={
-            "cost": r.get("cost", dict, default={}),
+            "cost": cost,
             "calibration": r.get("calibration", dict, default={}),
             "design": design_extra,
         },
@@ -161,31 +205,65 @@ def _from_doc(
     )
 
 
+def read_cost(r: TomlReader) -> dict:
+    """The optional ``[cost]`` table (docs/theory.md): every field a finite number, checked here."""
+    cost = r.get("cost", dict, default={})
+    for kind in ("length", "angle"):
+        for field in r.get(f"cost.{kind}", dict, default={}):
+            r.get(f"cost.{kind}.{field}", (float, int))
+    for name, entry in r.get("cost.parameters", dict, default={}).items():
+        if not isinstance(entry, dict):
+            r.fail(f'cost.parameters."{name}"', f"expected a table of cost fields, got {entry!r}")
+        for field, value in entry.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                r.fail(f'cost.parameters."{name}".{field}', f"expected a finite number, got {value!r}")
+    return dict(cost)
+
+
 def read_task_space(r: TomlReader) -> TaskSpace:
     """The ``[task_space]`` table: a cylinder grid or an explicit point list (frame K, metres)."""
     kind = r.get("task_space.kind", str)
     if kind == "cylinder":
-        z = r.vector("task_space.z_m", 2)
+        for key in ("points_m",):
+            if key in r.get("task_space", dict):
+                r.fail(f"task_space.{key}", "belongs to kind = 'points', not 'cylinder'; remove it")
+        z = r.lengths("task_space.z_m", 2)
         rings_f = r.array("task_space.rings")
-        if rings_f.ndim != 1 or np.any(rings_f != np.round(rings_f)):
-            r.fail("task_space.rings", f"expected a list of integers, got {rings_f.tolist()!r}")
+        whole = rings_f.ndim == 1 and rings_f.size > 0 and np.all(rings_f == np.round(rings_f))
+        if not whole or np.any(rings_f < 1):
+            r.fail("task_space.rings", f"expected a list of integers ≥ 1, got {rings_f.tolist()!r}")
         rings = tuple(int(x) for x in rings_f)
         radius = float(r.get("task_space.radius_m", (float, int)))
+        if abs(radius) > MAX_LENGTH_M:
+            r.fail("task_space.radius_m", f"a length beyond ±{MAX_LENGTH_M:g} m, got {radius!r}")
+        if radius <= 0:
+            r.fail("task_space.radius_m", f"the cylinder radius must be > 0, got {radius!r}")
         layers = int(r.get("task_space.layers", int))
-        if radius <= 0 or layers < 1 or not rings or min(rings) < 1 or z[1] < z[0]:
-            r.fail("task_space", "need radius_m > 0, layers ≥ 1, rings of ≥ 1 point and z_m = [min, max]")
+        if layers < 1:
+            r.fail("task_space.layers", f"need at least 1 layer, got {layers!r}")
+        if z[1] < z[0]:
+            r.fail("task_space.z_m", f"write it as [z_min, z_max], got {z.tolist()!r}")
+        center = r.lengths("task_space.center_xy_m", 2, default=[0.0, 0.0])
+        if layers * (1 + sum(rings)) > MAX_GRID_POINTS:
+            n = layers * (1 + sum(rings))
+            r.fail("task_space", f"{n} grid points; at most {MAX_GRID_POINTS} are allowed")
         return TaskSpace(
             kind="cylinder",
             radius_m=radius,
             z_range_m=(float(z[0]), float(z[1])),
             layers=layers,
             rings=rings,
-            center_xy_m=tuple(r.vector("task_space.center_xy_m", 2, default=[0.0, 0.0])),  # type: ignore[arg-type]
+            center_xy_m=(float(center[0]), float(center[1])),
         )
     if kind == "points":
-        pts = r.array("task_space.points_m")
+        for key in ("radius_m", "z_m", "layers", "rings", "center_xy_m"):
+            if key in r.get("task_space", dict):
+                r.fail(f"task_space.{key}", "belongs to kind = 'cylinder', not 'points'; remove it")
+        pts = r.lengths("task_space.points_m")
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             r.fail("task_space.points_m", "need a list of [x, y, z] points in metres")
+        if len(pts) > MAX_GRID_POINTS:
+            r.fail("task_space.points_m", f"{len(pts)} points; at most {MAX_GRID_POINTS} are allowed")
         return TaskSpace(kind="points", points_m=pts)
     r.fail("task_space.kind", f"unknown kind {kind!r}; use 'cylinder' or 'points'")
     raise AssertionError  # unreachable
@@ -215,31 +293,39 @@ def read_loops(r: TomlReader) -> list[tuple[str, str, str, str]]:
 
 def read_dh(r: TomlReader) -> DHTable:
     """A limb's ``[limbs.dh]`` table (angles in degrees in the file, radians in the result)."""
-    types = tuple(r.get("dh.joint_types", list))
+    types = tuple(r.strings("dh.joint_types"))
+    bad = [t for t in types if t not in ("R", "P")]
+    if bad or not types:
+        r.fail("dh.joint_types", f"expected a list of 'R' and 'P', one per joint, got {list(types)!r}")
     n = len(types)
     links = r.array("dh.links")
+    if links.ndim == 2 and links.shape[1:] == (4,) and np.abs(links[:, 1:3]).max(initial=0.0) > MAX_LENGTH_M:
+        r.fail("dh.links", f"a length d or a beyond ±{MAX_LENGTH_M:g} m; is the unit right (metres)?")
     if links.shape != (n + 1, 4):
         r.fail("dh.links", f"need {n + 1} rows [theta_deg, d_m, a_m, phi_deg] for {n} joints")
     links = links.copy()
     links[:, 0] = np.radians(links[:, 0])
     links[:, 3] = np.radians(links[:, 3])
-    end = r.vector("dh.end", 2)
+    end = r.lengths("dh.end", 2)
     limits = r.array("dh.limits")
     if limits.shape != (n, 2):
         r.fail("dh.limits", f"need {n} rows [lower, upper] (deg for R, m for P)")
+    if np.any(limits[:, 0] > limits[:, 1]):
+        k = int(np.flatnonzero(limits[:, 0] > limits[:, 1])[0])
+        r.fail("dh.limits", f"row {k + 1} is reversed: lower {limits[k, 0]:g} > upper {limits[k, 1]:g}")
     limits = limits.copy()
     for k, t in enumerate(types):
         if t == "R":
             limits[k] = np.radians(limits[k])
-    names = tuple(r.get("dh.joint_names", list))
-    try:
-        return DHTable(
-            links=links,
-            end=(float(end[0]), math.radians(end[1])),
-            joint_types=types,
-            joint_names=names,
-            limits=limits,
-        )  # type: ignore[arg-type]
-    except ValueError as err:
-        r.fail("dh", str(err))
-        raise
+    names = tuple(r.strings("dh.joint_names"))
+    if len(names) != n:
+        r.fail("dh.joint_names", f"{len(names)} names for {n} joint_types; give one name per joint")
+    if len(set(names)) != n:
+        r.fail("dh.joint_names", f"names must be unique, got {list(names)!r}")
+    return DHTable(
+        links=links,
+        end=(float(end[0]), math.radians(end[1])),
+        joint_types=types,
+        joint_names=names,
+        limits=limits,
+    )

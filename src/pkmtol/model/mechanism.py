@@ -16,7 +16,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.exceptions import InvalidRequestError, LoopMismatchError, PlatformMismatchError, URDFError
+import pkmtol.values as values
+from pkmtol.exceptions import (
+    InvalidArgumentError,
+    InvalidRequestError,
+    LoopMismatchError,
+    PlatformMismatchError,
+    URDFError,
+)
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.taskspace import TaskSpace
@@ -79,6 +86,40 @@ class Mechanism:
         n = np.asarray(self.task_normal, dtype=float)
         return d - (d @ n)[..., None] * n
 
+    def __post_init__(self) -> None:
+        """Check the fields (raises InvalidArgumentError naming the first wrong one)."""
+        values.text("name", self.name)
+        if not isinstance(self.limbs, tuple) or not all(isinstance(x, Limb) for x in self.limbs):
+            raise InvalidArgumentError("limbs", self.limbs, "expected a tuple of Limb objects")
+        if len(self.limbs) < 2:
+            raise InvalidArgumentError(
+                "limbs", f"{len(self.limbs)} limb(s)", "a parallel mechanism needs at least two limbs"
+            )
+        seen = set()
+        for limb in self.limbs:
+            if limb.name in seen:
+                raise InvalidArgumentError(
+                    "limbs", limb.name, "limb names must be unique (parameter names use them)"
+                )
+            seen.add(limb.name)
+        if not isinstance(self.reference_point_m, np.ndarray):
+            raise InvalidArgumentError(
+                "reference_point_m", self.reference_point_m, "expected an array of 3 numbers"
+            )
+        values.within_length(
+            "reference_point_m", values.vector("reference_point_m", self.reference_point_m, 3)
+        )
+        if not isinstance(self.task_space, TaskSpace):
+            raise InvalidArgumentError("task_space", self.task_space, "expected a pkmtol.TaskSpace")
+        values.length_m("target_m", self.target_m)
+        if not isinstance(self.betas, tuple) or not self.betas:
+            raise InvalidArgumentError("betas", self.betas, "expected a non-empty tuple of positive numbers")
+        for b in self.betas:
+            values.number("betas", b, positive=True)
+        values.number("design_beta", self.design_beta, positive=True)
+        if not isinstance(self.description, str):
+            raise InvalidArgumentError("description", self.description, "expected a string")
+
     @property
     def n_joints(self) -> int:
         """Total number of joints over all limbs."""
@@ -90,11 +131,12 @@ class Mechanism:
         return sum(len(limb.actuated) for limb in self.limbs)
 
     def limb(self, name: str) -> Limb:
-        """The limb called ``name``."""
+        """The limb called ``name`` (InvalidArgumentError listing the limbs if there is none)."""
         for limb in self.limbs:
             if limb.name == name:
                 return limb
-        raise KeyError(f"no limb '{name}' (limbs: {', '.join(x.name for x in self.limbs)})")
+        names = ", ".join(x.name for x in self.limbs)
+        raise InvalidArgumentError("name", name, f"no such limb (limbs: {names})")
 
     def constraint_models(self, models: Sequence[pin.Model] | None = None) -> ConstrainedModel:
         """The mechanism as one ``pin.Model`` plus a ``FrameAnchorConstraintModel`` per loop (Pinocchio 4).
@@ -136,11 +178,28 @@ class Mechanism:
             betas: β series.
             design_beta: β of the design case.
         """
-        names = list(limb_names or [f"limb{i + 1}" for i in range(len(models))])
+        models = _sequence("models", models, pin.Model, "pinocchio.Model limbs")
+        n = len(models)
+        if n < 2:
+            raise InvalidArgumentError(
+                "models", f"{n} model(s)", "a parallel mechanism needs at least two limbs, one pin.Model each"
+            )
+        actuated = _per_limb(
+            "actuated", actuated, n, "a list of actuated joint names per limb ([] if passive)"
+        )
+        act = [list(values.strings(f"actuated[{i}]", a)) for i, a in enumerate(actuated)]
+        if limb_names is None:
+            names = [f"limb{i + 1}" for i in range(n)]
+        else:
+            names = list(values.strings("limb_names", limb_names))
+            if len(names) != n:
+                raise InvalidArgumentError("limb_names", limb_names, f"need {n} names, one per model")
+        if homes is not None:
+            homes = _per_limb("homes", homes, n, "a list of joint values per limb")
         limbs = []
         for i, (lname, model) in enumerate(zip(names, models, strict=True)):
-            home = None if homes is None else homes[i]
-            limbs.append(make_limb(lname, model, list(actuated[i]), platform_frame, home, None))
+            home = None if homes is None else values.array(f"homes[{i}]", homes[i], ndim=1)
+            limbs.append(make_limb(lname, model, act[i], platform_frame, home, None))
         return cls.from_limbs(name, limbs, reference_point_m, task_space, target_m, betas, design_beta)
 
     @classmethod
@@ -170,15 +229,19 @@ class Mechanism:
             URDFError: the limbs start from different root links.
             PlatformMismatchError: the platform frames do not coincide at ``home``.
         """
+        limbs = _sequence("limbs", limbs, Limb, "Limb objects")
+        betas_arr = values.array("betas", betas, ndim=1)
+        if extra is not None and not isinstance(extra, dict):
+            raise InvalidArgumentError("extra", extra, "expected a dict")
         mech = cls(
             name=name,
             limbs=tuple(limbs),
-            reference_point_m=np.asarray(reference_point_m, dtype=float),
+            reference_point_m=values.vector("reference_point_m", reference_point_m, 3),
             task_space=task_space,
-            target_m=float(target_m),
-            betas=tuple(float(b) for b in betas),
-            design_beta=float(design_beta),
-            root=root,
+            target_m=values.length_m("target_m", target_m),
+            betas=tuple(float(b) for b in betas_arr),
+            design_beta=values.number("design_beta", design_beta, positive=True),
+            root=None if root is None else Path(root),
             description=description,
             extra=dict(extra or {}),
             task_normal=None if task_normal is None else _unit(task_normal),
@@ -195,6 +258,25 @@ def _unit(v: Sequence[float] | np.ndarray) -> np.ndarray:
     if not np.isfinite(norm) or norm < 1e-12:
         raise InvalidRequestError(f"the normal of a planar task must be a non-zero vector, got {n.tolist()}")
     return n / norm
+
+
+def _sequence(name: str, items: Any, kind: type, what: str) -> list[Any]:
+    """``items`` as a list of ``kind`` objects, or InvalidArgumentError naming ``name``."""
+    if isinstance(items, str | bytes) or not isinstance(items, Sequence):
+        raise InvalidArgumentError(name, items, f"expected a list of {what}")
+    for i, item in enumerate(items):
+        if not isinstance(item, kind):
+            raise InvalidArgumentError(f"{name}[{i}]", item, f"expected one of the {what}")
+    return list(items)
+
+
+def _per_limb(name: str, items: Any, n: int, what: str) -> list[Any]:
+    """``items`` as a list of ``n`` entries (one per limb), or InvalidArgumentError naming ``name``."""
+    if isinstance(items, str | bytes) or not isinstance(items, Sequence):
+        raise InvalidArgumentError(name, items, f"expected {what}")
+    if len(items) != n:
+        raise InvalidArgumentError(name, f"{len(items)} entries", f"need {n}, one per limb ({what})")
+    return list(items)
 
 
 def check_home(mech: Mechanism) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pkmtol.exceptions import MechanismFormatError
-from pkmtol.model.reading import TomlReader
+from pkmtol.model.reading import TomlReader, read_text
 
 #: Sidecar file names tried next to ``<stem>.urdf`` when none is given.
 SIDECAR_SUFFIXES = (".yaml", ".yml", ".toml")
@@ -73,7 +73,7 @@ def read_sidecar(path: Path | str) -> Sidecar:
     path = Path(path)
     if not path.is_file():
         raise MechanismFormatError(path, "-", "file not found; give the sidecar listing the loops and motors")
-    text = path.read_text(encoding="utf-8")
+    text = read_text(path, lambda problem: MechanismFormatError(path, "-", problem))
     if path.suffix == ".toml":
         try:
             doc: Any = tomllib.loads(text)
@@ -152,7 +152,7 @@ def _load_literal_yaml(path: Path, text: str) -> dict[str, Any]:
             if not sep:
                 raise ValueError("no 'key:'")
             doc[key.strip()] = ast.literal_eval(value.strip())
-        except (ValueError, SyntaxError) as err:
+        except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError) as err:
             raise MechanismFormatError(
                 path,
                 "-",

@@ -6,6 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError
+
+#: Task-space kinds.
+KINDS = ("cylinder", "points")
+#: Most grid points a task space may have (each costs an inverse kinematics and a separation).
+MAX_GRID_POINTS = 1_000_000
+
 
 @dataclass(frozen=True)
 class TaskSpace:
@@ -33,6 +41,55 @@ class TaskSpace:
     rings: tuple[int, ...] = ()
     center_xy_m: tuple[float, float] = (0.0, 0.0)
     points_m: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        """Check every field (raises InvalidArgumentError naming it); store tuples and arrays."""
+        values.choice("TaskSpace.kind", self.kind, KINDS)
+        if self.kind == "points":
+            if self.points_m is None:
+                raise InvalidArgumentError(
+                    "TaskSpace.points_m", None, "kind 'points' needs points_m, an array of shape (m, 3) [m]"
+                )
+            pts = values.array("TaskSpace.points_m", self.points_m, ndim=2)
+            values.within_length("TaskSpace.points_m", pts)
+            if pts.shape[1:] != (3,) or len(pts) == 0:
+                raise InvalidArgumentError(
+                    "TaskSpace.points_m", self.points_m, f"need [x, y, z] points, got shape {pts.shape}"
+                )
+            if len(pts) > MAX_GRID_POINTS:
+                raise InvalidArgumentError(
+                    "TaskSpace.points_m", f"{len(pts)} points", f"at most {MAX_GRID_POINTS} are allowed"
+                )
+            object.__setattr__(self, "points_m", pts)
+            return
+        if self.points_m is not None:
+            raise InvalidArgumentError(
+                "TaskSpace.points_m", "an array", "only kind 'points' takes points; use kind='points'"
+            )
+        values.within_length(
+            "TaskSpace.radius_m", values.number("TaskSpace.radius_m", self.radius_m, positive=True)
+        )
+        z = values.within_length(
+            "TaskSpace.z_range_m", values.vector("TaskSpace.z_range_m", self.z_range_m, 2)
+        )
+        if z[1] < z[0]:
+            raise InvalidArgumentError("TaskSpace.z_range_m", self.z_range_m, "write it as (z_min, z_max)")
+        values.count("TaskSpace.layers", self.layers, low=1)
+        rings = self.rings
+        if isinstance(rings, str) or not isinstance(rings, tuple | list) or not rings:
+            raise InvalidArgumentError("TaskSpace.rings", rings, "expected points per ring, e.g. (8, 16, 24)")
+        for k in rings:
+            values.count("TaskSpace.rings", k, low=1)
+        center = values.within_length(
+            "TaskSpace.center_xy_m", values.vector("TaskSpace.center_xy_m", self.center_xy_m, 2)
+        )
+        n = int(self.layers) * (1 + sum(int(k) for k in rings))
+        if n > MAX_GRID_POINTS:
+            raise InvalidArgumentError("TaskSpace.rings", rings, f"{n} grid points (max {MAX_GRID_POINTS})")
+        object.__setattr__(self, "radius_m", float(self.radius_m))
+        object.__setattr__(self, "z_range_m", (float(z[0]), float(z[1])))
+        object.__setattr__(self, "rings", tuple(int(k) for k in rings))
+        object.__setattr__(self, "center_xy_m", (float(center[0]), float(center[1])))
 
     def grid(self) -> np.ndarray:
         """Grid points, shape (m, 3) [m] in K: per layer (bottom to top) centre then rings."""

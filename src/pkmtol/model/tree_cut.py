@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +23,7 @@ from pkmtol.exceptions import (
     URDFError,
 )
 from pkmtol.model.limb import frame_id
+from pkmtol.model.reading import build_model, build_visuals, read_text
 from pkmtol.model.sidecar import Sidecar
 
 #: Closure frame names of the convention: ``closedloop<k>_A`` / ``closedloop<k>_B``.
@@ -95,19 +95,9 @@ def load_tree(urdf: Path | str) -> tuple[pin.Model, Any, str]:
     urdf = Path(urdf)
     if not urdf.is_file():
         raise URDFError("tree", urdf, "file not found")
-    text = urdf.read_text(encoding="utf-8")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as err:
-        raise URDFError("tree", urdf, f"malformed XML: {err}") from err
-    try:
-        model = pin.buildModelFromXML(text)
-    except (RuntimeError, ValueError) as err:
-        raise URDFError("tree", urdf, f"Pinocchio cannot read it: {err}") from err
-    try:
-        visual = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL, None, [str(urdf.parent)])
-    except Exception:  # noqa: BLE001 - visuals are optional (meshes may be missing)
-        visual = None
+    text = read_text(urdf, lambda problem: URDFError("tree", urdf, problem))
+    model, root = build_model("tree", urdf, text)
+    visual = build_visuals(model, root, "tree", urdf, text)
     children = {j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None}  # type: ignore[union-attr]
     roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
     return model, visual, str(roots[0]) if roots else "universe"

@@ -17,6 +17,7 @@ left alone, so this works headless and inside notebooks alike.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -24,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from pkmtol.design.job import DesignResult
-from pkmtol.exceptions import InvalidRequestError, OutputError
+from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
-from pkmtol.present.plotting import new_figure, render
+from pkmtol.present.plotting import new_figure, render, require_matplotlib
 
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
@@ -38,6 +39,9 @@ LENGTH_COLOUR = "#3b6fb6"
 ANGLE_COLOUR = "#e08a1e"
 SAFE_COLOUR = "#2e9e4f"
 FAILED_COLOUR = "#d62728"
+
+#: The D–H parameter names of the dh set (``δθ_{1,4}``, ``δd_{e,4}``), drawn as mathtext.
+_DH_NAME = re.compile(r"^(δ[θdaφ]|ξ)_\{[0-9ae]+,[0-9]+\}$")
 
 _GREEK = {
     "δ": r"\delta ",
@@ -70,9 +74,12 @@ def label_name(name: str) -> str:
 
 
 def tex_name(name: str) -> str:
-    """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``)."""
-    if "_{" not in name:
-        return name
+    """Return a parameter name as matplotlib mathtext when it is a D–H symbol (``δθ_{1,4}``).
+
+    Any other name is shown as written (a ``$`` in it is escaped, so it is never read as math).
+    """
+    if not _DH_NAME.match(name):
+        return name.replace("$", r"\$")
     return "$" + "".join(_GREEK.get(c, c) for c in name) + "$"
 
 
@@ -82,6 +89,7 @@ def _unit_colour(unit: str) -> str:
 
 def sensitivity_figure(result: DesignResult) -> Any:
     """Bars of the sensitivities ``ω_i = ‖J[:, i]‖`` of η_c at the design point (Fig. 8)."""
+    require_matplotlib()
     from matplotlib.patches import Patch
 
     unc = np.asarray(result.uncompensatable, dtype=int)
@@ -95,7 +103,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
     ax.set_xticks(x, [label_name(p.name) for p in params], rotation=60, ha="right")
     ax.set_xlim(-0.7, len(unc) - 0.3)
     ax.set_ylabel("sensitivity ω_i  [µm/µm or µm/µrad]")
-    p = result.worst_point_m * 1e3
+    p = np.round(result.worst_point_m * 1e3) + 0.0  # no "-0"
     ax.set_title(
         f"{result.mechanism.name}: sensitivities of the {len(unc)} uncompensatable errors\n"
         f"at the design point P = ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm",
@@ -114,6 +122,7 @@ def sensitivity_figure(result: DesignResult) -> Any:
 
 def histogram_figure(result: DesignResult, distribution: str = "gaussian", bins: int = HISTOGRAM_BINS) -> Any:
     """Histogram of the verification's Δλ with the Δλ* line and the failure fraction (Fig. 10)."""
+    require_matplotlib()
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -253,6 +262,29 @@ def make_figures(result: DesignResult) -> dict[str, Any]:
     }
 
 
+def render_figures(
+    result: DesignResult, formats: Sequence[str] = FORMATS, dpi: int = 150
+) -> dict[str, bytes]:
+    """The three figures rendered in memory: ``{"<stem>.<format>": bytes}``, nothing written.
+
+    Raises:
+        FiguresError: matplotlib is missing, or a figure cannot be drawn.
+        InvalidRequestError: an unknown format.
+    """
+    bad = [f for f in formats if f not in ("png", "svg", "pdf")]
+    if bad or not formats or isinstance(formats, str):
+        raise InvalidRequestError(f"figure formats must be png, svg or pdf, got {list(formats)}")
+    require_matplotlib()
+    rendered: dict[str, bytes] = {}
+    try:
+        for stem, fig in make_figures(result).items():
+            for fmt in formats:
+                rendered[f"{stem}.{fmt}"] = render(fig, fmt, dpi)
+    except (ValueError, RuntimeError) as err:  # e.g. a label matplotlib cannot typeset
+        raise FiguresError(f"matplotlib cannot draw the figures: {err}") from err
+    return rendered
+
+
 def write_figures(
     result: DesignResult,
     out_dir: Path | str,
@@ -274,18 +306,12 @@ def write_figures(
         OutputError: the folder or a file cannot be written.
 
     """
-    bad = [f for f in formats if f not in ("png", "svg", "pdf")]
-    if bad or not formats:
-        raise InvalidRequestError(f"figure formats must be png, svg or pdf, got {list(formats)}")
+    rendered = render_figures(result, formats, dpi)
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(out, err.strerror or str(err)) from err
-    rendered: list[tuple[Path, bytes]] = []
-    for stem, fig in make_figures(result).items():
-        for fmt in formats:
-            rendered.append((out / f"{stem}.{fmt}", render(fig, fmt, dpi)))
-    for path, data in rendered:
-        write_atomic(path, data)
-    return [path for path, _ in rendered]
+    for name, data in rendered.items():
+        write_atomic(out / name, data)
+    return [out / name for name in rendered]

@@ -9,14 +9,20 @@ from pkmtol.exceptions import FiguresError
 
 
 def require_matplotlib() -> tuple[Any, Any]:
-    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do."""
+    """``(Figure, FigureCanvasAgg)`` or :class:`FiguresError` with what to do.
+
+    Every matplotlib module the figures use is imported here, so that a missing (or broken)
+    matplotlib fails before anything is drawn.
+    """
     try:
+        import matplotlib.lines  # noqa: F401 - used by the figures
+        import matplotlib.patches  # noqa: F401
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError as err:
         raise FiguresError(
-            f"the figures need matplotlib ({err}); install it with "
-            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`)"
+            f"the figures need matplotlib, which is not installed ({err}); install it with "
+            "`pip install 'pkmtol[plots]'` (or `pip install matplotlib`), or pass --no-figures"
         ) from err
     return Figure, FigureCanvasAgg
 

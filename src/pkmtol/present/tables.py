@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
-from pkmtol.files import write_atomic
 from pkmtol.units import display, display_unit
 
 
@@ -28,10 +28,23 @@ def _num(x: float) -> float | None:
     return None if not math.isfinite(x) else float(x)
 
 
-def _fmt_tol(x: float, unit: str) -> str:
+def _fmt_tol(x: float, unit: str, units: str = "mm") -> str:
+    """``±0.0128`` (4 decimals), or 3 significant digits below 0.001 so that it never reads ±0.0000."""
     if math.isnan(x):
         return "noise floor"
-    return "+inf" if not math.isfinite(x) else f"±{display(x, unit):.4f}"
+    if not math.isfinite(x):
+        return "+inf"
+    v = display(x, unit, units)
+    return f"±{v:.4f}" if abs(v) >= 1e-3 or v == 0 else f"±{v:.3g}"
+
+
+def _coord(x_m: float) -> str:
+    """A coordinate [m] in mm with one decimal, never ``-0.0``."""
+    return f"{round(1e3 * x_m, 1) + 0.0:.1f}"
+
+
+def _point(p_m: np.ndarray) -> str:
+    return "(" + ", ".join(_coord(x) for x in p_m) + ") mm"
 
 
 def _sens_unit(unit: str) -> str:
@@ -190,11 +203,12 @@ def _stats(s: Any) -> dict[str, Any]:
 
 def to_json(r: DesignResult) -> str:
     """JSON text (deterministic for a given seed)."""
+    values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
     return json.dumps(to_json_dict(r), indent=2, ensure_ascii=False) + "\n"
 
 
-def table_rows(r: DesignResult) -> list[list[str]]:
-    """Rows of the tolerance table (the paper's Table III) with a header row."""
+def table_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
+    """Rows of the tolerance table (the paper's Table III) with a header row (``units``: mm or um)."""
     header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas]
     rows = [header]
     fallback = r.fallback_pose if r.fallback_pose is not None else np.full(len(r.pset), -1)
@@ -202,8 +216,8 @@ def table_rows(r: DesignResult) -> list[list[str]]:
         p = r.pset.parameters[i]
         name = p.name + (f" *{fallback[i]}" if fallback[i] >= 0 else "")
         rows.append(
-            [str(k), name, display_unit(p.unit), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
-            + [_fmt_tol(t, p.unit) for t in r.tolerances[i]]
+            [str(k), name, display_unit(p.unit, units), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
+            + [_fmt_tol(t, p.unit, units) for t in r.tolerances[i]]
         )
     return rows
 
@@ -287,7 +301,7 @@ def orientation_lines(r: DesignResult) -> list[str]:
     return out
 
 
-def comparison_rows(r: DesignResult) -> list[list[str]]:
+def comparison_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
     """Traditional vs new tolerance at the design β, per non-absorbed parameter."""
     col = r.design_column
     rows = [["parameter", "class", "unit", "new", "traditional", "traditional/new"]]
@@ -300,9 +314,9 @@ def comparison_rows(r: DesignResult) -> list[list[str]]:
             [
                 p.name,
                 r.mode_classes[i] if r.mode_classes else r.classes[i],
-                display_unit(p.unit),
-                _fmt_tol(new, p.unit) if allocated else "compensated",
-                _fmt_tol(t, p.unit),
+                display_unit(p.unit, units),
+                _fmt_tol(new, p.unit, units) if allocated else "compensated",
+                _fmt_tol(t, p.unit, units),
                 "-" if math.isnan(ratio) else f"{ratio:.3f}",
             ]
         )
@@ -357,13 +371,13 @@ def overconstraint_lines(grid: Sweep, names_all: list[str]) -> list[str]:
     ]
 
 
-def summary_text(r: DesignResult, markdown: bool = False) -> str:
-    """The whole report as terminal text or Markdown."""
+def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> str:
+    """The whole report as terminal text or Markdown (tolerances in mm/mrad, or µm/µrad with ``um``)."""
+    values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
     table = _md_table if markdown else text_table
     h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
     col = r.design_column
     counts = {c: r.classes.count(c) for c in ("absorbed", "compensatable", "uncompensatable")}
-    wp = r.worst_point_m * 1e3
     out = [
         ("# " if markdown else "") + f"pkmtol allocation — {r.mechanism.name}",
         "",
@@ -372,9 +386,9 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
         *_overconstraint_lines(r),
         "most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): "
-        f"P = ({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f}) mm, "
-        f"σ = {r.search.sigma_analytic_m[r.worst_index]:.5g} m analytic, "
-        f"{r.search.sigma_sampled_m[r.worst_index]:.5g} m from {r.search.samples} samples "
+        f"P = {_point(r.worst_point_m)}, "
+        f"σ[Δλ] = {r.search.sigma_analytic_m[r.worst_index]:.5g} m per unit error (m or rad) analytic, "
+        f"{r.search.sigma_sampled_m[r.worst_index]:.5g} from {r.search.samples} samples "
         f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
         _search_agreement(r),
         *compensation_lines(r),
@@ -382,7 +396,7 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         "R = Φ(β): "
         + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
         "",
-        table(table_rows(r)),
+        table(table_rows(r, units)),
         h(f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"),
     ]
     out[-1] = h(
@@ -435,7 +449,7 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
             h(f"Design by the '{r.method_design.method}' method"),
             *method_lines(r),
             "",
-            table(method_rows(r)),
+            table(method_rows(r, units)),
         ]
     t = r.traditional
     fin = np.isfinite(t.tolerance)
@@ -445,16 +459,16 @@ def summary_text(r: DesignResult, markdown: bool = False) -> str:
         if i in set(r.uncompensatable.tolist()) and math.isfinite(r.tolerances[i, col])
     ]
     tighter = sum(1 for a, b in shared if a < b)
-    factor = np.median([b / a for a, b in shared]) if shared else float("nan")
+    factor = np.median([a / b for a, b in shared]) if shared else float("nan")
     out += [
         h("Traditional method (all errors, no compensation), same Δλ*, β and design point"),
         f"{len(t.columns)} parameters allocated ({int(fin.sum())} finite, "
         f"{int((~fin).sum())} free '+inf') vs {len(r.uncompensatable)} by the new method; "
         f"{tighter} of {len(shared)} shared tolerances are tighter "
-        f"(median factor {factor:.3f}); traditional's own most sensitive point: "
-        "(" + ", ".join(f"{x * 1e3:.1f}" for x in r.grid.points_m[t.worst_index]) + ") mm",
+        f"(median traditional/new {factor:.3f}); traditional's own most sensitive point: "
+        + _point(r.grid.points_m[t.worst_index]),
         "",
-        table(comparison_rows(r)),
+        table(comparison_rows(r, units)),
     ]
     return "\n".join(out) + "\n"
 
@@ -464,6 +478,8 @@ def claim_rows(r: DesignResult) -> list[list[str]]:
 
     def ci(c: tuple[float, float, float]) -> str:
         return f"{100 * c[0]:.2f} ({100 * c[1]:.2f}–{100 * c[2]:.2f})"
+
+    # every reliability with 2 decimals, as R = Φ(β) above the tolerance table
 
     rows = [
         [
@@ -482,8 +498,8 @@ def claim_rows(r: DesignResult) -> list[list[str]]:
             [
                 f"{c.beta:g}",
                 f"{100 * c.claimed:.2f}",
-                f"{100 * c.exact_worst:.4f}",
-                f"{100 * c.exact_task_space:.4f} ({100 * c.exact_task_space_min:.4f})",
+                f"{100 * c.exact_worst:.2f}",
+                f"{100 * c.exact_task_space:.2f} ({100 * c.exact_task_space_min:.2f})",
                 ci(c.uniform_sigma_worst),
                 ci(c.uniform_sqrt3_worst),
                 ci(c.uniform_sigma_task_space),
@@ -507,7 +523,7 @@ def method_lines(r: DesignResult) -> list[str]:
     return lines
 
 
-def method_rows(r: DesignResult) -> list[list[str]]:
+def method_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
     """Per-parameter tolerances of the exact/cost design beside the equal-effect ones."""
     m = r.method_design
     assert m is not None
@@ -525,17 +541,17 @@ def method_rows(r: DesignResult) -> list[list[str]]:
         rows.append(
             [
                 p.name,
-                display_unit(p.unit),
-                _fmt_tol(m.sigma[k], p.unit),
-                _fmt_tol(m.reference_sigma[k], p.unit),
-                _fmt_tol(r.tolerances[i, r.design_column], p.unit),
+                display_unit(p.unit, units),
+                _fmt_tol(m.sigma[k], p.unit, units),
+                _fmt_tol(m.reference_sigma[k], p.unit, units),
+                _fmt_tol(r.tolerances[i, r.design_column], p.unit, units),
             ]
         )
     return rows
 
 
-def to_csv(r: DesignResult) -> str:
-    """CSV of every parameter: class, sensitivity, tolerances per β (display units)."""
+def to_csv(r: DesignResult, units: str = "mm") -> str:
+    """CSV of every parameter: class, sensitivity, tolerances per β (display units: mm/mrad or µm/µrad)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     col = r.design_column
@@ -548,41 +564,17 @@ def to_csv(r: DesignResult) -> str:
     for i, p in enumerate(r.pset.parameters):
         u = p.unit
         tols = [
-            "" if np.isnan(t) else ("inf" if not math.isfinite(t) else f"{display(t, u):.6g}")
+            "" if np.isnan(t) else ("inf" if not math.isfinite(t) else f"{display(t, u, units):.6g}")
             for t in r.tolerances[i]
         ]
         tr = trad.get(i)
         w.writerow(
-            [p.name, display_unit(u), r.classes[i], f"{r.sensitivity[i]:.6g}"]
+            [p.name, display_unit(u, units), r.classes[i], f"{r.sensitivity[i]:.6g}"]
             + tols
-            + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u):.6g}")]
+            + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u, units):.6g}")]
         )
     del col
     return buf.getvalue()
-
-
-def write_outputs(r: DesignResult, out_dir: Path | str, extra: dict[str, bytes] | None = None) -> list[Path]:
-    """Write allocation.json/.csv/.md (and ``extra`` files) into ``out_dir``, each atomically.
-
-    Every text is rendered before anything is written; each file goes to a temporary file in the
-    same folder and is renamed into place, so a file is either whole or absent.
-
-    Raises:
-        OutputError: the folder cannot be created or written.
-    """
-    out = Path(out_dir)
-    contents: dict[str, bytes] = {
-        "allocation.json": to_json(r).encode(),
-        "allocation.csv": to_csv(r).encode(),
-        "allocation.md": summary_text(r, markdown=True).encode(),
-    }
-    contents.update(extra or {})
-    check_output_folder(out)
-    written = []
-    for name, data in contents.items():
-        write_atomic(out / name, data)
-        written.append(out / name)
-    return written
 
 
 def check_output_folder(out: Path) -> None:

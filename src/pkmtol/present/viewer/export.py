@@ -56,6 +56,30 @@ def export_html(result: DesignResult, path: Path | str, options: SceneOptions | 
     path = Path(path)
     if path.parent and not path.parent.is_dir():
         raise OutputError(path, f"folder {path.parent} does not exist")
+    export = render_html(result, path, options)
+    write_atomic(path, export.data)
+    return export.export
+
+
+@dataclass(frozen=True)
+class RenderedPage:
+    """A 3D page rendered in memory (:func:`render_html`), not yet written.
+
+    Attributes:
+        data: The page (UTF-8).
+        export: What writing it to its path gives (:class:`HtmlExport`).
+    """
+
+    data: bytes
+    export: HtmlExport
+
+
+def render_html(result: DesignResult, path: Path | str, options: SceneOptions | None = None) -> RenderedPage:
+    """The page :func:`export_html` writes to ``path``, rendered in memory only (nothing written).
+
+    Raises:
+        ViewerError: meshcat is missing or its server did not start.
+    """
     with MeshcatServer() as server:
         vis = server.visualizer
         summary = build_scene(result, vis, options)
@@ -67,8 +91,9 @@ def export_html(result: DesignResult, path: Path | str, options: SceneOptions | 
     overlay = legend_overlay(list(summary.legend), summary.spheres is not None)
     page = page.replace("</body>", overlay + "\n</body>", 1)
     data = page.encode("utf-8")
-    write_atomic(path, data)
-    return HtmlExport(path=path, bytes=len(data), server_pid=server_pid, scene=summary)
+    return RenderedPage(
+        data, HtmlExport(path=Path(path), bytes=len(data), server_pid=server_pid, scene=summary)
+    )
 
 
 def show(

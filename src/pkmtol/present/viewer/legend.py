@@ -39,7 +39,7 @@ def legend_lines(
     """
     lines = [
         f"{result.mechanism.name}: design point P = "
-        + ", ".join(f"{1e3 * x:.0f}" for x in result.worst_point_m)
+        + ", ".join(f"{round(1e3 * x) + 0.0:.0f}" for x in result.worst_point_m)
         + " mm"
         + f" (grid point {result.worst_index})"
     ]

@@ -1,0 +1,181 @@
+"""Checks of user-given values (numbers, counts, choices, vectors), each failing with the argument's name.
+
+Every public entry point validates what it is given with these, so that a wrong value raises
+:class:`~pkmtol.exceptions.InvalidArgumentError` naming the argument (``target_m``,
+``TaskSpace.radius_m``, ``--samples``) and saying what to write instead, never a ``TypeError``
+or ``IndexError`` from deep inside. ``bool`` is never taken for a number.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Iterable, Sequence
+from numbers import Integral, Real
+from typing import Any
+
+import numpy as np
+
+from pkmtol.exceptions import InvalidArgumentError
+
+#: Largest length a mechanism may hold [m]: beyond it a number is a typo or a wrong unit (and its
+#: square overflows nothing yet, so every computation stays finite).
+MAX_LENGTH_M = 1e4
+
+
+def within_length(name: str, value: Any) -> np.ndarray:
+    """``value`` (numbers [m]) if every entry is within ±:data:`MAX_LENGTH_M`, else InvalidArgumentError."""
+    arr = np.asarray(value, dtype=float)
+    if arr.size and float(np.max(np.abs(arr))) > MAX_LENGTH_M:
+        raise InvalidArgumentError(
+            name, value, f"a length beyond ±{MAX_LENGTH_M:g} m; is the unit right (metres)?"
+        )
+    return arr
+
+
+def number(name: str, value: Any, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """``value`` as a finite float (``positive``: > 0, ``nonnegative``: ≥ 0).
+
+    >>> number("beta", 2)
+    2.0
+    """
+    if isinstance(value, bool) or not isinstance(value, Real):
+        hint = "; give the number itself, in SI units (m, rad)" if isinstance(value, str) else ""
+        raise InvalidArgumentError(name, value, f"expected a number{hint}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise InvalidArgumentError(name, value, "expected a finite number")
+    if positive and x <= 0:
+        raise InvalidArgumentError(name, value, "must be > 0")
+    if nonnegative and x < 0:
+        raise InvalidArgumentError(name, value, "must be ≥ 0")
+    return x
+
+
+def length_m(name: str, value: Any) -> float:
+    """A positive length [m] given as a number (text with a unit goes through ``parse_length``)."""
+    if isinstance(value, str):
+        raise InvalidArgumentError(
+            name,
+            value,
+            "expected a number of metres; convert text with its unit first, e.g. "
+            f"pkmtol.units.parse_length({value!r})",
+        )
+    return number(name, value, positive=True)
+
+
+def count(name: str, value: Any, low: int = 0, high: int | None = None) -> int:
+    """``value`` as an int with ``low ≤ value (≤ high)``; a float or a bool is refused.
+
+    >>> count("samples", 1000, low=2)
+    1000
+    """
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise InvalidArgumentError(name, value, f"expected a whole number ≥ {low}")
+    n = int(value)
+    if n < low:
+        raise InvalidArgumentError(name, value, f"must be ≥ {low}")
+    if high is not None and n > high:
+        raise InvalidArgumentError(name, value, f"must be ≤ {high}")
+    return n
+
+
+def flag(name: str, value: Any) -> bool:
+    """``value`` as a bool (``True``/``False`` only)."""
+    if not isinstance(value, bool | np.bool_):
+        raise InvalidArgumentError(name, value, "expected True or False")
+    return bool(value)
+
+
+def text(name: str, value: Any, *, empty: bool = False) -> str:
+    """``value`` as a string (non-empty unless ``empty``)."""
+    if not isinstance(value, str):
+        raise InvalidArgumentError(name, value, "expected a string")
+    if not empty and not value.strip():
+        raise InvalidArgumentError(name, value, "must not be empty")
+    return value
+
+
+def choice(name: str, value: Any, choices: Iterable[str]) -> str:
+    """``value`` if it is one of ``choices``; otherwise an error with the closest one suggested.
+
+    >>> choice("method", "fosm", ("fosm", "exact", "cost"))
+    'fosm'
+    """
+    options = tuple(choices)
+    if isinstance(value, str) and value in options:
+        return value
+    close = difflib.get_close_matches(str(value), options, n=1) if isinstance(value, str) else []
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise InvalidArgumentError(name, value, f"{hint}use one of {', '.join(map(repr, options))}")
+
+
+def vector(name: str, value: Any, n: int) -> np.ndarray:
+    """``value`` as a float array of shape (n,) with finite entries.
+
+    >>> vector("reference_point_m", [0, 0, 0.3], 3).tolist()
+    [0.0, 0.0, 0.3]
+    """
+    arr = array(name, value)
+    if arr.shape != (n,):
+        raise InvalidArgumentError(name, value, f"expected {n} numbers, got shape {arr.shape}")
+    return arr
+
+
+def array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
+    """``value`` as a float array of finite numbers (``ndim`` dimensions if given)."""
+    if isinstance(value, str | bytes | bool) or value is None or isinstance(value, dict):
+        raise InvalidArgumentError(name, value, "expected numbers (a list or an array)")
+    if isinstance(value, np.ndarray):
+        if value.dtype == bool or not np.issubdtype(value.dtype, np.number):
+            raise InvalidArgumentError(name, value, "expected an array of numbers")
+    elif isinstance(value, Sequence) and _has_non_number(value):
+        raise InvalidArgumentError(name, value, "expected numbers only (rows of equal length)")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidArgumentError(name, value, "expected numbers only (rows of equal length)") from None
+    if ndim is not None and arr.ndim != ndim:
+        raise InvalidArgumentError(name, value, f"expected {ndim} dimension(s), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidArgumentError(name, value, "every entry must be a finite number (no nan or inf)")
+    return arr
+
+
+def _has_non_number(value: Sequence[Any]) -> bool:
+    for v in value:
+        if isinstance(v, bool | str | bytes) or v is None:
+            return True
+        if isinstance(v, Sequence) and not isinstance(v, str) and _has_non_number(v):
+            return True
+    return False
+
+
+def strings(name: str, value: Any) -> tuple[str, ...]:
+    """``value`` as a tuple of strings (a list or tuple of ``str``)."""
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise InvalidArgumentError(name, value, "expected a list of strings")
+    bad = [v for v in value if not isinstance(v, str)]
+    if bad:
+        raise InvalidArgumentError(name, value, f"expected strings only, found {bad[0]!r}")
+    return tuple(value)
+
+
+def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
+    """``value`` if it is a ``kind``; otherwise InvalidArgumentError saying it should be ``what``.
+
+    >>> instance("rng", 3, int, "a number")
+    3
+    """
+    if not isinstance(value, kind):
+        raise InvalidArgumentError(name, value, f"expected {what}")
+    return value
+
+
+def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite float array whose shape matches ``shape`` (``None``: any length)."""
+    arr = array(name, value, ndim=len(shape))
+    if any(s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)):
+        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        raise InvalidArgumentError(name, f"shape {arr.shape}", f"expected an array of shape {want}")
+    return arr

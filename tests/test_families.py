@@ -1,0 +1,126 @@
+"""`pkmtol new`: the families reproduce the bundled robots from their documented dimensions, and a
+new variant is written only when it loads and passes the check."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from pkmtol.cli import main
+from pkmtol.exceptions import InvalidArgumentError, OutputError, RobotCheckError
+from pkmtol.kinematics.robot_folder import new_robot
+from pkmtol.model.families import FAMILIES, draft
+from pkmtol.model.loader import load_mechanism
+from pkmtol.model.robot_files import render_toml, urdfs_from_toml
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: The dimensions docs/robots.md gives for each bundled robot (written out, not the defaults).
+DOCUMENTED = {
+    "r2rps_ups": dict(
+        ups_base=0.5, rps_base=0.45, ups_platform=0.25, rps_platform=0.25, height=0.75, offset=0.3,
+        leg_stroke=(0.4, 1.6), centre_stroke=(0.3, 1.6), task_radius=0.6, task_z=(0.9, 1.1),
+    ),
+    "tricept": dict(
+        base_radius=0.45, platform_radius=0.18, height=0.9, offset=0.3, leg_stroke=(0.6, 1.4),
+        centre_stroke=(0.5, 1.3), task_radius=0.4, task_z=(1.1, 1.3),
+    ),
+    "sprint_z3": dict(
+        rail_radius=0.3, platform_radius=0.2, rod_length=0.4, slider_height=0.2, offset=0.3,
+        slider_stroke=(0.0, 0.5), task_radius=0.15, task_z=(0.8, 0.95),
+    ),
+    "exechon": dict(
+        u_spacing=0.3, s_offset=0.45, upr_platform=0.12, spr_platform=0.18, height=0.9, offset=0.3,
+        leg_stroke=(0.6, 1.4), task_radius=0.4, task_z=(1.1, 1.3),
+    ),
+}  # fmt: skip
+
+
+def test_every_bundled_robot_has_a_family():
+    bundled = {p.parent.name for p in (REPO / "robots").glob("*/mechanism.toml")}
+    assert bundled == set(FAMILIES) == set(DOCUMENTED)
+
+
+@pytest.mark.parametrize("family", sorted(DOCUMENTED))
+def test_family_reproduces_the_bundled_robot(family, tmp_path):
+    robot = draft(family, **DOCUMENTED[family])
+    text = render_toml(robot, family)
+    bundled = REPO / "robots" / family
+    assert tomllib.loads(text) == tomllib.loads((bundled / "mechanism.toml").read_text(encoding="utf-8"))
+    (tmp_path / "mechanism.toml").write_text(text, encoding="utf-8")
+    urdfs = urdfs_from_toml(tmp_path)
+    assert sorted(p.name for p in urdfs) == sorted(p.name for p in bundled.glob("*.urdf"))
+    for path, urdf in urdfs.items():
+        assert urdf == (bundled / path.name).read_text(encoding="utf-8"), path.name
+
+
+def test_pkmtol_new_with_no_dimension_writes_the_bundled_tricept(tmp_path, capsys):
+    out = tmp_path / "tricept"
+    assert main(["new", "tricept", "--out", str(out), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "147/147 task-space points reachable: OK" in printed
+    assert "constraint wrenches leg1 0, leg2 0, leg3 0, centre 3" in printed
+    bundled = REPO / "robots" / "tricept"
+    for f in bundled.iterdir():
+        if f.suffix == ".urdf":
+            assert (out / f.name).read_bytes() == f.read_bytes()
+    assert tomllib.loads((out / "mechanism.toml").read_text(encoding="utf-8")) == tomllib.loads(
+        (bundled / "mechanism.toml").read_text(encoding="utf-8")
+    )
+
+
+def test_a_variant_is_written_checked_and_loads(tmp_path):
+    made = new_robot("tricept", tmp_path / "wide", base_radius=0.55)
+    assert made.report.problems == () and made.report.n_reachable == 147
+    assert [p.name for p in made.files] == [
+        "mechanism.toml",
+        "leg1.urdf",
+        "leg2.urdf",
+        "leg3.urdf",
+        "centre.urdf",
+    ]
+    mech = load_mechanism(tmp_path / "wide")
+    assert mech.name == "wide"
+    # the U joints moved out to 0.55 m: leg 1's first D–H row carries it
+    assert mech.limbs[0].dh.links[0, 2] == pytest.approx(0.55)
+    assert "--base-radius 0.55" in made.command
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["wide"]  # no temporary folder left
+
+
+def test_a_variant_that_fails_the_check_writes_nothing(tmp_path):
+    with pytest.raises(RobotCheckError, match=r"117 of 147 task-space points are not reachable") as info:
+        new_robot("tricept", tmp_path / "big", task_radius=1.5)
+    assert info.value.family == "tricept"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "family, dims, option, needle",
+    [
+        ("sprint_z3", {"rod_length": 0.05}, "--rod-length", "must be longer than"),
+        ("tricept", {"leg_stroke": (2.0, 1.0)}, "--leg-stroke", "MIN MAX"),
+        ("tricept", {"base_radius": 2.0}, "--leg-stroke", "outside this stroke"),
+        ("exechon", {"height": -1.0}, "--height", "must be > 0"),
+        ("r2rps_ups", {"height": float("nan")}, "--height", "finite"),
+        ("tricept", {"base_radus": 0.5}, "dimension", "did you mean 'base_radius'"),
+        ("tricep", {}, "family", "did you mean 'tricept'"),
+    ],
+)
+def test_bad_dimensions_name_the_option(tmp_path, family, dims, option, needle):
+    with pytest.raises(InvalidArgumentError, match=needle) as info:
+        new_robot(family, tmp_path / "x", **dims)
+    assert info.value.argument == option
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_existing_folder_is_not_overwritten(tmp_path, capsys):
+    out = tmp_path / "taken"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["new", "exechon", "--out", str(out)]) == 2
+    assert "exists and is not an empty folder" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    with pytest.raises(OutputError):
+        new_robot("exechon", out)
