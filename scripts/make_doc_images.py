@@ -1,5 +1,6 @@
-"""Regenerate the README's images: docs/img/scene.png (meshcat scene in headless Chromium) and
-docs/img/{sensitivity,dlambda_histogram,tolerances}.png (the report's figures).
+"""Regenerate the README's images: docs/img/scene.png and scene_ellipsoids.png (the meshcat scene in
+headless Chromium, error spheres and error ellipsoids) and
+docs/img/{sensitivity,dlambda_histogram,tolerances,contributions}.png (the report's figures).
 
 Usage: python scripts/make_doc_images.py [ROBOT] [--out DIR]
 Needs matplotlib and a Chromium binary (Debian: apt-get install chromium).
@@ -17,6 +18,7 @@ from pkmtol.model.loader import load_mechanism
 from pkmtol.present.figures import write_figures
 from pkmtol.present.viewer.browser import screenshot
 from pkmtol.present.viewer.export import export_html
+from pkmtol.present.viewer.options import SceneOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -38,6 +40,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         html = export_html(result, Path(tmp) / "scene.html").path
         print(f"wrote {screenshot(html, out / 'scene.png', size=(1200, 900))}")
+        html = export_html(result, Path(tmp) / "ellipsoids.html", SceneOptions(glyph="ellipsoid")).path
+        print(f"wrote {screenshot(html, out / 'scene_ellipsoids.png', size=(1200, 900))}")
 
 
 if __name__ == "__main__":

@@ -77,7 +77,7 @@ def test_own_models_print_the_tolerance_table():
     assert all(r[1].startswith("column.") for r in rows)
     betas = np.array([0.5, 1.0, 1.5, 2.0, 2.5, 3.0])
     for r in rows:  # σ_i · β is constant along each row (printed to 4 decimals)
-        tol = np.array([float(c.lstrip("±")) for c in r[4:]])
+        tol = np.array([float(c.lstrip("±")) for c in r[4 : 4 + betas.size]])  # then the share columns
         expected = tol[1] / betas  # from the β = 1 column
         assert np.all(np.abs(tol - expected) <= 5e-5 * (1 + 1 / betas) + 1e-12), r
 

@@ -14,6 +14,7 @@ import pytest
 from pkmtol import DesignOptions, allocate, load_mechanism, write_outputs
 from pkmtol.cli import main
 from pkmtol.exceptions import OutputError, OutputLockedError, ViewerError
+from pkmtol.present.figures import FIGURES as FIGURE_STEMS
 from pkmtol.present.run_folder import MANIFEST, RunFolder
 from pkmtol.present.tables import _fmt_tol, summary_text, table_rows
 
@@ -21,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "robots" / "r2rps_ups"
 SMALL = ["--samples", "300", "--exact-samples", "0", "--verification-poses", "30", "--no-progress"]
 TABLES = ["allocation.csv", "allocation.json", "allocation.md"]
-FIGURES = [f"{s}.{f}" for s in ("dlambda_histogram", "sensitivity", "tolerances") for f in ("png", "svg")]
+FIGURES = [f"{s}.{f}" for s in FIGURE_STEMS for f in ("png", "svg")]
 
 
 @pytest.fixture(scope="module")

@@ -232,3 +232,15 @@ def test_sweep_command_refuses_bad_input(tmp_path, capsys, args, says):
     err = capsys.readouterr().err
     assert err.startswith("pkmtol: error: ") and says in err
     assert not (tmp_path / "o").exists()
+
+
+def test_sweep_command_names_an_unreachable_scheduler_before_any_work(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("dask.distributed")
+    import pkmtol.executor
+
+    monkeypatch.setattr(pkmtol.executor, "DASK_TIMEOUT_S", 1.0)
+    args = ["sweep", str(SEED), "--vary", "task_space.radius_m=0.5:0.6:2", "--dask", "tcp://127.0.0.1:9"]
+    assert main([*args, "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "pkmtol: error: dask: no Dask scheduler answers at 'tcp://127.0.0.1:9'" in err
+    assert "dask scheduler" in err and not (tmp_path / "o").exists()

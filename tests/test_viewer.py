@@ -18,7 +18,7 @@ meshcat = pytest.importorskip("meshcat")
 from process_checks import alive  # noqa: E402
 
 from pkmtol.design.job import DesignOptions, allocate  # noqa: E402
-from pkmtol.exceptions import ViewerError  # noqa: E402
+from pkmtol.exceptions import InvalidRequestError, ViewerError  # noqa: E402
 from pkmtol.model.loader import load_mechanism  # noqa: E402
 from pkmtol.present.viewer.browser import find_chromium, screenshot  # noqa: E402
 from pkmtol.present.viewer.export import HtmlExport, export_html, show  # noqa: E402
@@ -97,7 +97,7 @@ def _transforms(commands, prefix):
 def test_layers_each_have_their_own_path(recorded):
     summary, commands = recorded
     assert summary.root == f"/meshcat/{ROOT}"
-    assert set(summary.layers) == {"robot", "error_spheres", "verification", "reference", "legend"}
+    assert set(summary.layers) == {"robot", "error_spheres", "verification", "reference", "legend", "ground"}
     paths = {c["path"] for c in commands if c["type"] in ("set_object", "set_transform")}
     for layer in summary.layers.values():
         assert any(p.startswith(f"/meshcat/{layer}/") or p == f"/meshcat/{layer}" for p in paths), layer
@@ -375,6 +375,13 @@ def test_static_page_renders_in_headless_chromium(result, tmp_path):
     assert np.any(np.abs(full - shots["no_robot"]) > 40, axis=-1).mean() > 0.003
     # the spheres are visible: hiding them changes a large part of the picture
     assert np.any(np.abs(full - shots["no_spheres"]) > 40, axis=-1).mean() > 0.03
+    # the camera frames the mechanism: its orange legs lie near the middle of the picture
+    ys, xs = np.nonzero(_orange(full))
+    assert abs(xs.mean() / 1200 - 0.5) < 0.12 and abs(ys.mean() / 900 - 0.5) < 0.12
+    # and the whole mechanism is in view: no orange on the picture's border
+    border = _orange(full).copy()
+    border[10:-10, 10:-10] = False
+    assert border.sum() == 0
     if Path("/proc").is_dir():
         assert _server_processes(os.getpid()) == []
 
@@ -406,3 +413,122 @@ def test_show_serves_the_scene_on_loopback(result):
     finally:
         server.close()
     assert not alive(server.pid)
+
+
+# --- framing, ground, glyphs, legend (issue 16) ------------------------------------------------
+
+
+def test_camera_frames_the_mechanism_and_the_task_space(result, recorded):
+    from pkmtol.present.viewer.geometry import CAMERA_FOV_DEG, camera_distance, mechanism_points
+
+    summary, commands = recorded
+    b = summary.bounds
+    pts = np.vstack([mechanism_points(result), result.grid.points_m])
+    assert np.all(pts >= b.low) and np.all(pts <= b.high)
+    # the pkmtol node is shifted so that the box's centre is meshcat's origin (the orbit target)
+    np.testing.assert_allclose(summary.offset_m, -b.centre)
+    root = _transforms(commands, f"/meshcat/{ROOT}")[f"/meshcat/{ROOT}"]
+    np.testing.assert_allclose(root[:3, 3], -b.centre) and np.testing.assert_allclose(root[:3, :3], np.eye(3))
+    cam = [
+        c
+        for c in commands
+        if c["type"] == "set_property" and c["path"] == "/Cameras/default/rotated/<object>"
+    ]
+    d = summary.camera_m
+    assert cam[-1]["value"] == pytest.approx([d[0], d[2], -d[1]])
+    assert np.linalg.norm(d) == pytest.approx(camera_distance(b.radius))
+    # every corner of the box is inside the camera's view cone (half-angle: half the vertical FOV)
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (b.low[0], b.high[0])
+            for y in (b.low[1], b.high[1])
+            for z in (b.low[2], b.high[2])
+        ]
+    )
+    rays = corners - (b.centre + d)
+    cos = rays @ (-d) / (np.linalg.norm(rays, axis=1) * np.linalg.norm(d))
+    assert np.degrees(np.arccos(cos)).max() < CAMERA_FOV_DEG / 2
+
+
+def test_ground_grid_lies_under_the_base(result, recorded):
+    from pkmtol.present.viewer.geometry import mechanism_points
+
+    summary, commands = recorded
+    z, step = summary.ground
+    assert z < mechanism_points(result)[:, 2].min() and step == pytest.approx(0.2)
+    grid = _objects(commands, f"/meshcat/{ROOT}/ground")[f"/meshcat/{ROOT}/ground"]
+    assert grid["object"]["type"] == "LineSegments"
+    pos = grid["geometries"][0]["data"]["attributes"]["position"]["array"]
+    xyz = np.frombuffer(pos.data, dtype=np.float32).reshape(-1, 3)
+    np.testing.assert_allclose(xyz[:, 2], z, atol=1e-6)
+    b = summary.bounds
+    assert xyz[:, 0].min() <= b.low[0] and xyz[:, 0].max() >= b.high[0]
+    assert xyz[:, 1].min() <= b.low[1] and xyz[:, 1].max() >= b.high[1]
+    hidden = {
+        c["path"]: c["value"] for c in commands if c["type"] == "set_property" and c["property"] == "visible"
+    }
+    assert hidden["/Grid"] is False and hidden["/Axes"] is False
+
+
+def test_spheres_are_small_and_see_through(result, recorded):
+    summary, commands = recorded
+    objs = _objects(commands, f"/meshcat/{ROOT}/error_spheres/")
+    materials = [o["materials"][0] for o in objs.values()]
+    assert all(m["opacity"] == pytest.approx(0.35) and m["transparent"] for m in materials)
+    d = np.linalg.norm(result.grid.points_m[:, None] - result.grid.points_m[None], axis=-1)
+    d[np.diag_indices(len(d))] = np.inf
+    assert summary.spheres.max_radius_m == pytest.approx(0.2 * d.min())
+
+
+def test_ellipsoid_glyph_is_the_covariance_of_the_error(result):
+    window = RecordingWindow()
+    s = build_scene(result, meshcat.Visualizer(window=window), SceneOptions(glyph="ellipsoid", animate=False))
+    e = s.spheres
+    assert e.glyph == "ellipsoid" and e.semi_axes_m.shape == (147, 3) and e.axes.shape == (147, 3, 3)
+    L = result.maps.position[:, :, result.uncompensatable]
+    cov = L @ np.swapaxes(L, 1, 2)  # η_c ~ N(0, 1): the pose search's quantity
+    tfs = _transforms(window.commands, f"/meshcat/{ROOT}/error_spheres/")
+    objs = _objects(window.commands, f"/meshcat/{ROOT}/error_spheres/")
+    for k in (0, result.worst_index, 100):
+        lam = np.sort(np.linalg.eigvalsh(cov[k]))[::-1]
+        expected = np.maximum(e.ellipsoid_scale * np.sqrt(np.clip(lam, 0, None)), 0.02 * e.max_radius_m)
+        np.testing.assert_allclose(e.semi_axes_m[k], expected, rtol=1e-9)
+        V = e.axes[k]
+        np.testing.assert_allclose(V.T @ V, np.eye(3), atol=1e-9)
+        assert np.linalg.det(V) == pytest.approx(1.0)
+        # the covariance's eigenvectors: V diag(λ) Vᵀ = Σ
+        np.testing.assert_allclose(V @ np.diag(lam) @ V.T, cov[k], atol=1e-12 * lam[0])
+        t = tfs[f"/meshcat/{ROOT}/error_spheres/{k}"]
+        np.testing.assert_allclose(t[:3, :3], V * e.semi_axes_m[k][None, :], atol=1e-12)
+        np.testing.assert_allclose(t[:3, 3], result.grid.points_m[k], atol=1e-12)
+        assert objs[f"/meshcat/{ROOT}/error_spheres/{k}"]["geometries"][0]["radius"] == 1.0
+    assert e.semi_axes_m[:, 0].max() == pytest.approx(e.max_radius_m)
+    assert any(line.startswith("Error ellipsoids (147)") for line in s.legend)
+    with pytest.raises(InvalidRequestError):
+        SceneOptions(glyph="cube")
+    with pytest.raises(InvalidRequestError):
+        SceneOptions(sphere_opacity=0.0)
+
+
+def test_design_spheres_and_cloud_come_from_the_modes_maps(result):
+    """The layers read result.maps (J, L or J_total), not grid.J: doubling the maps doubles σ and Δp."""
+    doubled = dataclasses.replace(
+        result, maps=dataclasses.replace(result.maps, position=2 * result.maps.position)
+    )
+    opt = SceneOptions(sigma="design", layers=("error_spheres", "verification"), animate=False)
+    one = build_scene(result, meshcat.Visualizer(window=RecordingWindow()), opt)
+    two = build_scene(doubled, meshcat.Visualizer(window=RecordingWindow()), opt)
+    np.testing.assert_allclose(two.spheres.sigma_m, 2 * one.spheres.sigma_m, rtol=1e-9)
+    assert two.verification.cloud_failed > one.verification.cloud_failed
+
+
+def test_legend_says_which_failure_rate_is_which(result, recorded):
+    summary, _ = recorded
+    v = summary.verification
+    design = [line for line in summary.legend if "AT THE DESIGN POINT" in line]
+    whole = [line for line in summary.legend if "OVER THE WHOLE TASK SPACE" in line]
+    assert len(design) == 1 and len(whole) == 1
+    assert f"{v.cloud_failed} of {v.cloud_samples} beyond Δλ*" in design[0]
+    assert f"{v.task_space_failed} beyond Δλ*" in whole[0] and f"{v.task_space_samples} samples" in whole[0]
+    assert "TASK SPACE" not in design[0] and "DESIGN POINT" not in whole[0]

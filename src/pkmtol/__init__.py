@@ -28,6 +28,7 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.design.methods import MethodDesign, method_design_for
     from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
     from pkmtol.design.reliability import exact_reliability, reliability_fosm
+    from pkmtol.design.signoff import SignOff, sign_off
     from pkmtol.design.verification import FailureStats, Verification, verify
     from pkmtol.error_model.accuracy import norm_moments, sensitivities
     from pkmtol.error_model.parameters import ErrorParameter, ParameterSet, default_set, parameter_set
@@ -72,11 +73,13 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.kinematics.perturbation import perturbed_limb_models
     from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
     from pkmtol.model.constraints import ConstrainedModel, constraint_models
+    from pkmtol.model.drawing import DrawingSettings
     from pkmtol.model.limb import Limb, LimbLoop
     from pkmtol.model.loader import load_mechanism
     from pkmtol.model.mechanism import Mechanism
     from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
     from pkmtol.model.taskspace import TaskSpace
+    from pkmtol.present.html_report import write_report
     from pkmtol.present.outputs import write_outputs
     from pkmtol.present.tables import summary_text, to_json
 
@@ -89,6 +92,7 @@ _EXPORTS = {
     "DHMismatchError": "pkmtol.exceptions",
     "DesignOptions": "pkmtol.design.job",
     "DesignResult": "pkmtol.design.job",
+    "DrawingSettings": "pkmtol.model.drawing",
     "ErrorParameter": "pkmtol.error_model.parameters",
     "ErrorTable": "pkmtol.error_model.table",
     "FailureStats": "pkmtol.design.verification",
@@ -120,6 +124,7 @@ _EXPORTS = {
     "ResourceLimitError": "pkmtol.exceptions",
     "RobotCheckError": "pkmtol.exceptions",
     "Separation": "pkmtol.error_model.separation",
+    "SignOff": "pkmtol.design.signoff",
     "SingularPoseError": "pkmtol.exceptions",
     "Sweep": "pkmtol.error_model.sweep",
     "TaskSpace": "pkmtol.model.taskspace",
@@ -151,11 +156,13 @@ _EXPORTS = {
     "search_sensitive_pose": "pkmtol.design.pose_search",
     "sensitivities": "pkmtol.error_model.accuracy",
     "separate": "pkmtol.error_model.separation",
+    "sign_off": "pkmtol.design.signoff",
     "summary_text": "pkmtol.present.tables",
     "sweep": "pkmtol.error_model.sweep",
     "to_json": "pkmtol.present.tables",
     "verify": "pkmtol.design.verification",
     "write_outputs": "pkmtol.present.outputs",
+    "write_report": "pkmtol.present.html_report",
 }
 
 __all__ = [
@@ -167,6 +174,7 @@ __all__ = [
     "DHMismatchError",
     "DesignOptions",
     "DesignResult",
+    "DrawingSettings",
     "ErrorParameter",
     "ErrorTable",
     "FailureStats",
@@ -198,6 +206,7 @@ __all__ = [
     "ResourceLimitError",
     "RobotCheckError",
     "Separation",
+    "SignOff",
     "SingularPoseError",
     "Sweep",
     "TaskSpace",
@@ -229,11 +238,13 @@ __all__ = [
     "search_sensitive_pose",
     "sensitivities",
     "separate",
+    "sign_off",
     "summary_text",
     "sweep",
     "to_json",
     "verify",
     "write_outputs",
+    "write_report",
 ]
 __version__ = "0.1.0"
 

@@ -487,33 +487,6 @@ class FiguresError(PkmtolError):
     """Figures cannot be made: matplotlib is missing (``pip install 'pkmtol[plots]'``)."""
 
 
-# --- execution and studies ------------------------------------------------------------------------
-
-
-class ExecutorError(PkmtolError):
-    """The executor cannot run: a bad worker count, Dask missing, or no scheduler at the address.
-
-    Attributes:
-        culprit: The offending setting (``workers``, ``dask``, ``n_chunks``).
-    """
-
-    def __init__(self, culprit: str, problem: str) -> None:
-        self.culprit = culprit
-        super().__init__(f"{culprit}: {problem}")
-
-
-class SweepSpecError(PkmtolError):
-    """A ``--vary KEY=START:STOP:N`` specification of ``pkmtol sweep`` cannot be used.
-
-    Attributes:
-        spec: The specification as given.
-    """
-
-    def __init__(self, spec: str, problem: str) -> None:
-        self.spec = spec
-        super().__init__(f"--vary {spec!r}: {problem}")
-
-
 # --- warnings -----------------------------------------------------------------------------------
 
 
@@ -541,6 +514,33 @@ class MissingMeshWarning(PkmtolWarning):
             f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
             "(results are not affected); fix the filename or put the mesh next to the URDF"
         )
+
+
+# --- execution and studies ------------------------------------------------------------------------
+
+
+class ExecutorError(PkmtolError):
+    """The executor cannot run: a bad worker count, Dask missing, or no scheduler at the address.
+
+    Attributes:
+        culprit: The offending setting (``workers``, ``dask``, ``n_chunks``).
+    """
+
+    def __init__(self, culprit: str, problem: str) -> None:
+        self.culprit = culprit
+        super().__init__(f"{culprit}: {problem}")
+
+
+class SweepSpecError(PkmtolError):
+    """A ``--vary KEY=START:STOP:N`` specification of ``pkmtol sweep`` cannot be used.
+
+    Attributes:
+        spec: The specification as given.
+    """
+
+    def __init__(self, spec: str, problem: str) -> None:
+        self.spec = spec
+        super().__init__(f"--vary {spec!r}: {problem}")
 
 
 # --- calibration ------------------------------------------------------------------------------

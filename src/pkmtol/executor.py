@@ -77,6 +77,16 @@ class Executor:
         """True when chunks run outside this process."""
         return self.dask is not None or self.workers > 1
 
+    def connect(self) -> Executor:
+        """Reach the Dask scheduler now (start the LocalCluster), so a bad address fails before any work.
+
+        Raises:
+            ExecutorError: the Dask extra is missing or no scheduler answers at the address.
+        """
+        if self.dask is not None:
+            _dask_client(self)
+        return self
+
     def describe(self) -> str:
         """One line for reports: ``serial``, ``2 local processes`` or ``Dask at tcp://…``."""
         if self.dask == "local":

@@ -64,6 +64,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     For callers (and tests) that want the exception itself rather than its printed message.
     """
     args = _parser().parse_args(argv)
+    args.argv = ["pkmtol", *(sys.argv[1:] if argv is None else argv)]  # the report's provenance
     return int(args.run(args))
 
 

@@ -18,10 +18,12 @@ from pkmtol.cli.common import (
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
+from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.outputs import render_tables
 from pkmtol.present.run_folder import RunFolder
 from pkmtol.present.tables import summary_text
+from pkmtol.present.viewer.options import SceneOptions
 from pkmtol.units import parse_angle
 
 
@@ -133,6 +135,34 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not write the PNG/SVG figures (without matplotlib they are left out with a warning)",
     )
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write the sign-off report to FILE (.html): every table, the figures as inline SVG, "
+        "the 3D scene and the provenance in one self-contained page that loads nothing from the network",
+    )
+    p.add_argument(
+        "--drawing",
+        choices=CONVENTIONS,
+        default=None,
+        help="drawing tolerances: normal, ±t = k·σ (default, k = 3), or uniform, ±t = √3·σ "
+        "(default: [drawing] convention)",
+    )
+    p.add_argument(
+        "--drawing-k",
+        type=float,
+        default=None,
+        metavar="K",
+        help="the k of ±t = k·σ (default: [drawing] k, else 3)",
+    )
+    p.add_argument(
+        "--ellipsoids",
+        action="store_true",
+        help="in the 3D scene (--html, --view, --report), the 1σ ellipsoid of P's error at every grid "
+        "point instead of a sphere",
+    )
     add_executor_options(p)
     p.set_defaults(run=_run)
 
@@ -188,11 +218,14 @@ def _run(args: argparse.Namespace) -> int:
             calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
             orientation_target_rad=orientation,
             tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
+            drawing=drawing_option(mech.extra.get("drawing"), args.drawing, args.drawing_k),
         )
         check_memory(mech, opts)
     out = args.out if args.out is not None else Path("out") / mech.name
-    if args.html is not None and not (args.html.parent or Path(".")).is_dir():
-        raise OutputError(args.html, f"folder {args.html.parent} does not exist")
+    for name, path in (("--html", args.html), ("--report", args.report)):
+        if path is not None and not (path.parent if str(path.parent) else Path(".")).is_dir():
+            raise OutputError(path, f"folder {path.parent} does not exist; create it first ({name})")
+    options = scene_options(args.ellipsoids)
     with RunFolder(out) as run:
         result = allocate(mech, opts)
         # everything is rendered before anything is written: a failure leaves the folder as it was
@@ -203,8 +236,12 @@ def _run(args: argparse.Namespace) -> int:
         if args.html is not None:
             from pkmtol.present.viewer.export import render_html
 
-            page = render_html(result, args.html)
+            page = render_html(result, args.html, options)
         outside = {} if page is None else {args.html: page.data}
+        report = None
+        if args.report is not None:
+            report = _render_report(result, options, args.seed, getattr(args, "argv", sys.argv))
+            outside[args.report] = report.data
         written = run.write(files, outside)
     print(summary_text(result, units=args.units), end="")
     print("\nstage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings_s.items()))
@@ -215,9 +252,50 @@ def _run(args: argparse.Namespace) -> int:
         print(
             f"wrote {args.html} ({page.export.bytes} bytes, {spheres.count if spheres else 0} error spheres)"
         )
+    if report is not None:
+        if report.figures_missing:
+            print(f"pkmtol: warning: report without figures: {report.figures_missing}", file=sys.stderr)
+        print(
+            f"wrote {args.report} ({len(report.data)} bytes: {len(report.sections)} sections, "
+            f"{len(report.figures)} figures)"
+        )
     if args.view:
-        view(result, None, True)
+        view(result, None, True, options)
     return 0
+
+
+def drawing_option(
+    table: DrawingSettings | None, convention: str | None, k: float | None
+) -> DrawingSettings | None:
+    """The mechanism's ``[drawing]`` settings with ``--drawing`` / ``--drawing-k`` applied (None: as is).
+
+    Raises:
+        InvalidArgumentError: ``--drawing-k`` with the uniform convention, or a k that is not positive.
+    """
+    if convention is None and k is None:
+        return None
+    base = table if table is not None else DrawingSettings()
+    if k is not None and (convention or base.convention) == "uniform":
+        raise InvalidArgumentError(
+            "--drawing-k", k, "it sets the k of ±t = k·σ; the uniform convention has none (√3)"
+        )
+    try:
+        return base.with_convention(convention, k)
+    except InvalidRequestError as err:
+        raise InvalidArgumentError("--drawing-k", k, str(err)) from err
+
+
+def scene_options(ellipsoids: bool) -> SceneOptions | None:
+    """The 3D scene's options for ``--ellipsoids`` (None: the defaults)."""
+    return SceneOptions(glyph="ellipsoid") if ellipsoids else None
+
+
+def _render_report(result: DesignResult, options: SceneOptions | None, seed: int, argv: list[str]):  # noqa: ANN202
+    """The sign-off report rendered in memory (``argv``: the command's words, for its provenance)."""
+    from pkmtol.present.html_report import render_report
+    from pkmtol.present.provenance import provenance
+
+    return render_report(result, provenance(result.mechanism, seed, argv), options)
 
 
 def _figures(result: DesignResult) -> dict[str, bytes]:
@@ -231,13 +309,13 @@ def _figures(result: DesignResult) -> dict[str, bytes]:
         return {}
 
 
-def view(result: DesignResult, html: Path | None, live: bool) -> None:
+def view(result: DesignResult, html: Path | None, live: bool, options: SceneOptions | None = None) -> None:
     """Write the 3D page to ``html`` (if given), then serve the scene live (if ``live``)."""
     from pkmtol.present.viewer.export import export_html, show
 
     if html is not None:
-        info = export_html(result, html)
+        info = export_html(result, html, options)
         spheres = info.scene.spheres
         print(f"wrote {info.path} ({info.bytes} bytes, {spheres.count if spheres else 0} error spheres)")
     if live:
-        show(result)
+        show(result, options)

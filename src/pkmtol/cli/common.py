@@ -1,4 +1,4 @@
-"""What every subcommand shares: exit codes, number printing, option-value checks, the executor options."""
+"""What every subcommand shares: exit codes, number formats, checks of option values, the executor."""
 
 from __future__ import annotations
 
@@ -39,30 +39,6 @@ def mm(p_m: np.ndarray) -> str:
     return "(" + ", ".join(f"{round(1e3 * x, 1) + 0.0:.1f}" for x in p_m) + ") mm"
 
 
-def add_executor_options(parser: argparse.ArgumentParser) -> None:
-    """``--workers N`` and ``--dask ADDRESS``: where the parallel loops run (docs/scale.md)."""
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        metavar="N",
-        help="local worker processes for the parallel loops (default 1: serial; the numbers do not "
-        "depend on it); with --dask local, the number of Dask workers",
-    )
-    parser.add_argument(
-        "--dask",
-        default=None,
-        metavar="ADDRESS",
-        help="run the parallel loops on a Dask scheduler (tcp://host:8786), or 'local' to start a "
-        "LocalCluster; needs pip install 'pkmtol[dask]'",
-    )
-
-
-def executor_from(args: argparse.Namespace) -> Executor:
-    """The :class:`Executor` of ``--workers``/``--dask`` (raises ExecutorError if they are bad)."""
-    return Executor(workers=args.workers, dask=args.dask)
-
-
 @contextlib.contextmanager
 def named_as_options(names: Mapping[str, str] = OPTION_OF_FIELD) -> Iterator[None]:
     """Re-raise an InvalidArgumentError about an option field as one about its command-line option."""
@@ -92,3 +68,31 @@ def target_option(text: str | None) -> float | None:
 def show_progress(no_progress: bool) -> bool:
     """Progress bars on stderr: when it is a terminal and ``--no-progress`` is not given."""
     return not no_progress and sys.stderr.isatty()
+
+
+def add_executor_options(parser: argparse.ArgumentParser) -> None:
+    """``--workers N`` and ``--dask ADDRESS``: where the parallel loops run (docs/scale.md)."""
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="local worker processes for the parallel loops (default 1: serial; the numbers do not "
+        "depend on it); with --dask local, the number of Dask workers",
+    )
+    parser.add_argument(
+        "--dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run the parallel loops on a Dask scheduler (tcp://host:8786), or 'local' to start a "
+        "LocalCluster; needs pip install 'pkmtol[dask]'",
+    )
+
+
+def executor_from(args: argparse.Namespace) -> Executor:
+    """The :class:`Executor` of ``--workers``/``--dask``, its Dask scheduler reached already.
+
+    Raises:
+        ExecutorError: a bad worker count, or no scheduler at the ``--dask`` address.
+    """
+    return Executor(workers=args.workers, dask=args.dask).connect()

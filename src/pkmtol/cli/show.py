@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pkmtol.cli.allocate import view
+from pkmtol.cli.allocate import scene_options, view
 from pkmtol.cli.common import named_as_options, show_progress
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, allocate
@@ -29,6 +29,11 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--ellipsoids",
+        action="store_true",
+        help="the 1σ ellipsoid of P's error at every grid point instead of a sphere",
+    )
     p.set_defaults(run=_run)
 
 
@@ -47,5 +52,5 @@ def _run(args: argparse.Namespace) -> int:
         )
         check_memory(mech, opts)
     result = allocate(mech, opts)
-    view(result, args.html, args.html is None)
+    view(result, args.html, args.html is None, scene_options(args.ellipsoids))
     return 0

@@ -39,6 +39,7 @@ from pkmtol.error_model.sweep import Sweep, guesses_near, sweep
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, NoiseFloorError
 from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.model.drawing import DrawingSettings
 from pkmtol.model.mechanism import Mechanism
 
 #: Exact verification samples of the ``calibrated`` mode (each is a whole simulated calibration; the
@@ -78,6 +79,8 @@ class DesignOptions:
         tool_axis: The tool axis in the platform frame (None: ``[design] tool_axis``, else z).
         executor: Where the exact verification (ideal mode) and the claimed-vs-true
             reliabilities run (None: serial); the numbers do not depend on it.
+        drawing: The drawing convention (±t = k·σ or √3·σ), nominal sizes and feature lengths
+            (None: the mechanism's ``[drawing]`` table, else the defaults).
     """
 
     target_m: float | None = None
@@ -97,6 +100,7 @@ class DesignOptions:
     orientation_target_rad: float | None = None
     tool_axis: tuple[float, float, float] | None = None
     executor: Executor | None = None
+    drawing: DrawingSettings | None = None
 
     def __post_init__(self) -> None:
         """Check every field (raises InvalidArgumentError naming it); betas become a tuple."""
@@ -160,6 +164,7 @@ class DesignResult:
             taken (docs/theory.md, "No error left untoleranced"); −1 otherwise.
         orientation: The tilt of the tool axis: sensitivities, its own FOSM tolerances when it has
             a target, and its statistics for the verified design.
+        drawing: How the tolerances go on a drawing (:mod:`pkmtol.design.signoff` reports them).
     """
 
     mechanism: Mechanism
@@ -188,6 +193,7 @@ class DesignResult:
     noise_variance_m2: float = 0.0
     fallback_pose: np.ndarray | None = None
     orientation: OrientationDesign | None = None
+    drawing: DrawingSettings = field(default_factory=DrawingSettings)
 
     @property
     def worst_point_m(self) -> np.ndarray:
@@ -537,6 +543,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         noise_variance_m2=noise_var,
         fallback_pose=fallback,
         orientation=od,
+        drawing=opt.drawing or mechanism.extra.get("drawing") or DrawingSettings(),
     )
 
 

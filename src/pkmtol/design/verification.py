@@ -241,10 +241,12 @@ def verify_all(
                 owners.append(dist)
         bar = tqdm(total=len(tasks) * 1, desc="exact chunks", unit="chunk", disable=not progress, leave=False)
         parts: dict[str, list[np.ndarray]] = {d: [] for d in distributions}
-        for dist, (part, error) in zip(owners, imap_chunks(_exact_chunk, tasks, executor), strict=True):
+        for dist, (chunk_values, error) in zip(
+            owners, imap_chunks(_exact_chunk, tasks, executor), strict=True
+        ):
             if error is not None:
                 raise error
-            parts[dist].append(part)
+            parts[dist].append(chunk_values)
             bar.update(1)
         bar.close()
         exact = {d: np.concatenate(parts[d]) for d in distributions}

@@ -51,36 +51,42 @@ def continuation(
             progress(m - 1)
         return Solutions.concatenate([first, rest])
     spacing = _nearest_neighbour_spacing(points)
-    solved = [first]  # per wave; parents are addressed as (wave, position)
-    parent_of = [(0, 0)]
+    # every solved point's joints, P and tangent dq/dP, by point index (the parents of later waves)
+    q_at = np.zeros((m, batch.n_joints))
+    p_at = np.zeros((m, 3))
+    t_at = np.zeros((m, batch.n_joints, 3))
+    q_at[0], p_at[0], t_at[0] = first.q[0], first.p_m[0], first.system_inverse[0][:, -3:]
     near_d = np.linalg.norm(points - points[0], axis=1)
-    near_i = np.zeros(m, dtype=int)  # index into parent_of
+    near_i = np.zeros(m, dtype=int)  # nearest solved point
     todo = np.ones(m, dtype=bool)
     todo[0] = False
-    waves = [np.zeros(1, dtype=int)]
+    waves, solved = [np.zeros(1, dtype=int)], [first]
     while todo.any():
         cand = np.flatnonzero(todo)
         reach = max(spacing, float(near_d[cand].min())) * REACH
         wave = cand[near_d[cand] <= reach][:CHUNK]
-        guesses = np.empty((len(wave), batch.n_joints))
-        for pos, k in enumerate(wave):
-            w, j = parent_of[near_i[k]]
-            guesses[pos] = batch.predict(solved[w], np.array([j]), points[k : k + 1])[0]
+        parent = near_i[wave]
+        # the tangent step q + (dq/dP) Δp off each point's nearest solved point (BatchChain.predict)
+        guesses = q_at[parent] + (t_at[parent] @ (points[wave] - p_at[parent])[:, :, None])[:, :, 0]
         sols = batch.inverse(points[wave], guesses)
         todo[wave] = False
         waves.append(wave)
         solved.append(sols)
         if progress is not None:
             progress(len(wave))
-        new = [pos for pos in range(len(wave)) if sols.errors[pos] is None]
-        if new:
-            base = len(parent_of)
-            parent_of.extend((len(solved) - 1, pos) for pos in new)
-            d = np.linalg.norm(points[:, None, :] - points[wave[new]][None], axis=2)  # (m, new)
+        new = np.array([pos for pos in range(len(wave)) if sols.errors[pos] is None], dtype=int)
+        if new.size:
+            done = wave[new]
+            q_at[done], p_at[done], t_at[done] = (
+                sols.q[new],
+                sols.p_m[new],
+                sols.system_inverse[new][:, :, -3:],
+            )
+            d = np.linalg.norm(points[:, None, :] - points[done][None], axis=2)  # (m, new)
             best = d.argmin(axis=1)
             dist = d[np.arange(m), best]
             closer = dist < near_d
-            near_i[closer] = base + best[closer]
+            near_i[closer] = done[best[closer]]
             near_d[closer] = dist[closer]
     order = np.concatenate(waves)
     return Solutions.concatenate(solved).take(np.argsort(order))

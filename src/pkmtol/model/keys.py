@@ -43,6 +43,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "mjcf",
             "cost",
             "calibration",
+            "drawing",
         }
     ),
     "reference_point": frozenset({"position_m"}),
@@ -76,6 +77,10 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "manufacturing_angle",
         }
     ),
+    # read by pkmtol.model.drawing (its TABLE_KEYS; tests/test_signoff.py keeps them equal)
+    "drawing": frozenset({"convention", "k", "feature_length", "feature_lengths", "nominals"}),
+    "drawing.feature_lengths": ANY,
+    "drawing.nominals": ANY,
 }
 
 

@@ -14,6 +14,7 @@ import numpy as np
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, MechanismFormatError
 from pkmtol.model import closed_loop, mjcf
 from pkmtol.model.dh import DHTable, check_dh_matches
+from pkmtol.model.drawing import read_drawing
 from pkmtol.model.keys import check_keys
 from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
@@ -185,6 +186,12 @@ def _from_doc(
         if dh is not None:
             check_dh_matches(limb, dh, f"python scripts/dh_to_urdf.py {folder}")
         limbs.append(limb)
+    # [drawing]: the ±t convention, nominal sizes, feature lengths (docs/report.md); its keys are
+    # model.drawing.TABLE_KEYS, registered in model/keys.py
+    joints = [
+        j for limb in limbs for j in (*limb.joint_names, limb.attach_name, *(lp.name for lp in limb.loops))
+    ]
+    drawing = read_drawing(r.get("drawing", dict, default={}), path, joints)
     return Mechanism.from_limbs(
         name,
         limbs,
@@ -199,6 +206,7 @@ def _from_doc(
             "cost": cost,
             "calibration": r.get("calibration", dict, default={}),
             "design": design_extra,
+            "drawing": drawing,
         },
         check_home_closure=check_home_closure,
         task_normal=normal,

@@ -7,9 +7,12 @@
   its 95 % interval, the FOSM prediction ``1 − Φ(β)`` and the exact-kinematics subsample's
   fraction when run) in the legend;
 * :func:`tolerance_figure` — traditional (all errors, no compensation) vs new tolerances of η_c
-  at the design β on a log scale (the paper's Fig. 11).
+  at the design β on a log scale (the paper's Fig. 11);
+* :func:`pareto_figure` — the percent contribution of each toleranced error to E[Δλ²] (Pareto:
+  largest first, cumulative line) at the design point, its worst share over the task space as
+  a marker, and the same for the tilt Δα when it is reported.
 
-:func:`write_figures` writes all three as PNG and SVG. Figures are drawn on matplotlib's Agg
+:func:`write_figures` writes all four as PNG and SVG. Figures are drawn on matplotlib's Agg
 canvas through the object API (``matplotlib.figure.Figure``): pyplot and the global backend are
 left alone, so this works headless and inside notebooks alike.
 """
@@ -24,7 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from pkmtol.design.contributions import NOISE
 from pkmtol.design.job import DesignResult
+from pkmtol.design.signoff import sign_off
 from pkmtol.exceptions import FiguresError, InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.present.plotting import new_figure, render, require_matplotlib
@@ -32,13 +37,14 @@ from pkmtol.present.plotting import new_figure, render, require_matplotlib
 #: Number of bins of the Δλ histogram.
 HISTOGRAM_BINS = 40
 #: File stem of each figure.
-FIGURES = ("sensitivity", "dlambda_histogram", "tolerances")
+FIGURES = ("sensitivity", "dlambda_histogram", "tolerances", "contributions")
 FORMATS = ("png", "svg")
 
 LENGTH_COLOUR = "#3b6fb6"
 ANGLE_COLOUR = "#e08a1e"
 SAFE_COLOUR = "#2e9e4f"
 FAILED_COLOUR = "#d62728"
+NOISE_COLOUR = "#8c8c8c"
 
 #: The D–H parameter names of the dh set (``δθ_{1,4}``, ``δd_{e,4}``), drawn as mathtext.
 _DH_NAME = re.compile(r"^(δ[θdaφ]|ξ)_\{[0-9ae]+,[0-9]+\}$")
@@ -253,12 +259,69 @@ def tolerance_figure(result: DesignResult) -> Any:
     return fig
 
 
+def pareto_figure(result: DesignResult) -> Any:
+    """Percent contributions to E[Δλ²] (and E[Δα²]) of the verified design: bars, worst share, cumulative."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    so = sign_off(result)
+    panels = [("Δλ", so.contributions, so.design_index)]
+    if so.tilt_contributions is not None:
+        panels.append(("Δα (tilt of the tool axis)", so.tilt_contributions, so.tilt_design_index))
+    n = max(len(so.columns), 1) + 1
+    fig = new_figure((max(6.5, 0.42 * n + 2.5), 3.9 * len(panels)))
+    for ax, (what, c, pose) in zip(np.atleast_1d(fig.subplots(len(panels), 1)), panels, strict=True):
+        order = list(c.order())
+        labels, share, worst, colours = [], [], [], []
+        for k in order:
+            p = result.pset.parameters[c.columns[k]]
+            labels.append(tex_name(p.name))
+            share.append(100 * c.at_design[k])
+            worst.append(100 * c.worst[k])
+            colours.append(_unit_colour(p.unit))
+        if c.noise_share.any():
+            at = int(np.searchsorted(-np.asarray(share), -100 * c.noise_at_design))
+            labels.insert(at, NOISE)
+            share.insert(at, 100 * c.noise_at_design)
+            worst.insert(at, 100 * float(c.noise_share.max()))
+            colours.insert(at, NOISE_COLOUR)
+        x = np.arange(len(labels))
+        ax.bar(x, share, color=colours, edgecolor="black", linewidth=0.5)
+        ax.plot(x, worst, "D", color="black", markersize=4, linestyle="none")
+        ax.set_xticks(x, labels, rotation=60, ha="right")
+        ax.set_xlim(-0.7, len(labels) - 0.3)
+        ax.set_ylabel("share of E[" + what.split()[0] + "²]  [%]")
+        ax.grid(axis="y", alpha=0.3)
+        cum = ax.twinx()
+        cum.plot(x, np.cumsum(share), color="#555555", linewidth=1.2, marker=".")
+        cum.set_ylim(0, 140)  # the legend sits above 100 %
+        cum.set_ylabel("cumulative at the design point [%]")
+        ax.set_title(
+            f"{result.mechanism.name}: contributions to E[{what.split()[0]}²] of the {len(order)} "
+            f"toleranced errors{'' if what == 'Δλ' else ' — ' + what}\nbars: at grid pose {pose}; "
+            "◆: each error's largest share over the task space",
+            fontsize=10,
+        )
+        handles = [
+            Patch(facecolor=LENGTH_COLOUR, edgecolor="black", label="length error"),
+            Patch(facecolor=ANGLE_COLOUR, edgecolor="black", label="angle error"),
+            Line2D([], [], marker="D", color="black", linestyle="none", markersize=4, label="worst share"),
+            Line2D([], [], color="#555555", marker=".", label="cumulative"),
+        ]
+        if c.noise_share.any():
+            handles.insert(2, Patch(facecolor=NOISE_COLOUR, edgecolor="black", label=NOISE))
+        ax.legend(handles=handles, fontsize=8, loc="upper center", ncol=len(handles))
+        ax.set_ylim(0, max(max(worst, default=0.0), max(share, default=0.0)) * 1.4 + 1e-9)
+    return fig
+
+
 def make_figures(result: DesignResult) -> dict[str, Any]:
-    """Draw the three figures, by file stem (see :data:`FIGURES`)."""
+    """Draw the four figures, by file stem (see :data:`FIGURES`)."""
     return {
         "sensitivity": sensitivity_figure(result),
         "dlambda_histogram": histogram_figure(result),
         "tolerances": tolerance_figure(result),
+        "contributions": pareto_figure(result),
     }
 
 
@@ -291,14 +354,14 @@ def write_figures(
     formats: Sequence[str] = FORMATS,
     dpi: int = 150,
 ) -> list[Path]:
-    """Write the three figures into ``out_dir`` (created if missing) as ``<stem>.<format>``.
+    """Write the four figures into ``out_dir`` (created if missing) as ``<stem>.<format>``.
 
     Every figure is rendered before any file is written; each file is written through a
     temporary file renamed over it.
 
     Returns:
-        The files written: ``sensitivity``, ``dlambda_histogram``, ``tolerances`` in that order,
-        each in every format.
+        The files written: ``sensitivity``, ``dlambda_histogram``, ``tolerances``,
+        ``contributions`` in that order, each in every format.
 
     Raises:
         FiguresError: matplotlib is missing.

@@ -21,6 +21,7 @@ import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
+from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
 from pkmtol.units import display, display_unit
 
 
@@ -61,7 +62,6 @@ def _ratio(new: float, old: float) -> float:
 
 def to_json_dict(r: DesignResult) -> dict[str, Any]:
     """The design as a JSON-ready dict (SI units, unit named per field)."""
-    col = r.design_column
     trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
     params = []
     assembly = r.grid.incompatible()
@@ -103,7 +103,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
         "design_beta": r.design_beta,
         "worst_point_m": r.worst_point_m.tolist(),
         "redundancy": r.grid.redundancy,
-        "n_allocated": int(np.sum(np.isfinite(r.tolerances[r.uncompensatable, col]))),
+        "n_allocated": int(np.sum(np.isfinite(r.tolerances[r.uncompensatable, r.design_column]))),
         "parameters": params,
         "sensitive_pose_search": {
             "samples": r.search.samples,
@@ -158,6 +158,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
             "points_m": r.calibration_plan.maps.points_m.tolist(),
         },
         "orientation": None if r.orientation is None else _orientation_json(r),
+        "signoff": signoff_json(r),
         "traditional": {
             "design_point_m": r.worst_point_m.tolist(),
             "own_worst_point_m": r.grid.points_m[r.traditional.worst_index].tolist(),
@@ -209,15 +210,17 @@ def to_json(r: DesignResult) -> str:
 
 def table_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
     """Rows of the tolerance table (the paper's Table III) with a header row (``units``: mm or um)."""
-    header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas]
+    header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas] + SHARE_HEADER
     rows = [header]
     fallback = r.fallback_pose if r.fallback_pose is not None else np.full(len(r.pset), -1)
+    share = share_cells(r)  # of the FOSM design at the design β
     for k, i in enumerate(r.uncompensatable, start=1):
         p = r.pset.parameters[i]
         name = p.name + (f" *{fallback[i]}" if fallback[i] >= 0 else "")
         rows.append(
             [str(k), name, display_unit(p.unit, units), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
             + [_fmt_tol(t, p.unit, units) for t in r.tolerances[i]]
+            + share[int(i)]
         )
     return rows
 
@@ -304,7 +307,8 @@ def orientation_lines(r: DesignResult) -> list[str]:
 def comparison_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
     """Traditional vs new tolerance at the design β, per non-absorbed parameter."""
     col = r.design_column
-    rows = [["parameter", "class", "unit", "new", "traditional", "traditional/new"]]
+    rows = [["parameter", "class", "unit", "new", "traditional", "traditional/new", "new " + SHARE_HEADER[0]]]
+    share = share_cells(r)
     for i, t in zip(r.traditional.columns, r.traditional.tolerance, strict=True):
         p = r.pset.parameters[i]
         allocated = i in set(r.uncompensatable.tolist())
@@ -318,6 +322,7 @@ def comparison_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
                 _fmt_tol(new, p.unit, units) if allocated else "compensated",
                 _fmt_tol(t, p.unit, units),
                 "-" if math.isnan(ratio) else f"{ratio:.3f}",
+                share[int(i)][0] if allocated else "-",
             ]
         )
     return rows
@@ -340,10 +345,6 @@ def _md_table(rows: list[list[str]]) -> str:
     out = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
     out += ["| " + " | ".join(row) + " |" for row in rows[1:]]
     return "\n".join(out)
-
-
-def _overconstraint_lines(r: DesignResult) -> list[str]:
-    return overconstraint_lines(r.grid, r.pset.names)
 
 
 def _search_agreement(r: DesignResult) -> str:
@@ -384,7 +385,7 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
         f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at P; parameter set '{r.pset.kind}' "
         f"({len(r.pset)} parameters: {counts['uncompensatable']} uncompensatable, "
         f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
-        *_overconstraint_lines(r),
+        *overconstraint_lines(r.grid, r.pset.names),
         "most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): "
         f"P = {_point(r.worst_point_m)}, "
         f"σ[Δλ] = {r.search.sigma_analytic_m[r.worst_index]:.5g} m per unit error (m or rad) analytic, "
@@ -397,13 +398,12 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
         + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
         "",
         table(table_rows(r, units)),
-        h(f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"),
+        h(
+            f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"
+            if r.method_design is None
+            else f"Verification of the '{r.method_design.method}' design (Δλ* = {r.target_m * 1e6:g} µm)"
+        ),
     ]
-    out[-1] = h(
-        f"Verification of the β = {r.design_beta:g} design (Δλ* = {r.target_m * 1e6:g} µm)"
-        if r.method_design is None
-        else f"Verification of the '{r.method_design.method}' design (Δλ* = {r.target_m * 1e6:g} µm)"
-    )
     vrows = [
         ["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]
     ]
@@ -437,6 +437,7 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
     ]
     if r.orientation is not None and (r.orientation.target_rad is not None or r.compensation != "ideal"):
         out += [h("Orientation of the tool axis"), *orientation_lines(r)]
+    out += signoff_text(r, table, h)
     out += [
         h("Claimed vs true reliability of the FOSM designs (R in %)"),
         table(claim_rows(r)),
@@ -513,14 +514,13 @@ def method_lines(r: DesignResult) -> list[str]:
     """Summary lines of an exact/cost design."""
     m = r.method_design
     assert m is not None
-    lines = [
+    return [
         f"target R* = Φ({r.design_beta:g}) = {100 * m.target_reliability:.4f} %, criterion '{m.criterion}': "
         f"exact R at the worst pose {100 * m.reliability[r.worst_index]:.4f} %, min over the grid "
         f"{100 * m.reliability.min():.4f} %, mean {100 * m.reliability.mean():.4f} %",
         f"total cost {m.cost:.4g} (cost model of docs/theory.md); the equal-effect design with the same "
         f"true R (min over the grid) costs {m.reference_cost:.4g}",
     ]
-    return lines
 
 
 def method_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
@@ -534,8 +534,10 @@ def method_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
             f"{m.method} design",
             "equal effect, same true R",
             "FOSM β=" + f"{r.design_beta:g}",
+            *SHARE_HEADER,
         ]
     ]
+    share = share_cells(r, method=True)
     for k, i in enumerate(r.uncompensatable):
         p = r.pset.parameters[i]
         rows.append(
@@ -545,6 +547,7 @@ def method_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
                 _fmt_tol(m.sigma[k], p.unit, units),
                 _fmt_tol(m.reference_sigma[k], p.unit, units),
                 _fmt_tol(r.tolerances[i, r.design_column], p.unit, units),
+                *share[int(i)],
             ]
         )
     return rows
@@ -554,12 +557,12 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
     """CSV of every parameter: class, sensitivity, tolerances per β (display units: mm/mrad or µm/µrad)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    col = r.design_column
     trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
+    share = share_cells(r, numeric=True)
     w.writerow(
         ["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
         + [f"tolerance_beta_{b:g}" for b in r.betas]
-        + [f"traditional_tolerance_beta_{r.design_beta:g}"]
+        + [f"traditional_tolerance_beta_{r.design_beta:g}", *SHARE_CSV]
     )
     for i, p in enumerate(r.pset.parameters):
         u = p.unit
@@ -572,8 +575,8 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
             [p.name, display_unit(u, units), r.classes[i], f"{r.sensitivity[i]:.6g}"]
             + tols
             + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u, units):.6g}")]
+            + share.get(i, ["", "", ""])
         )
-    del col
     return buf.getvalue()
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from pkmtol.exceptions import ViewerError
@@ -31,8 +32,14 @@ def chromium_command(
     profile: Path,
     size: tuple[int, int] = (1200, 900),
     budget_ms: int = 10_000,
+    fragment: str = "",
+    extra: Sequence[str] = (),
 ) -> list[str]:
-    """Build the headless Chromium command that renders ``html`` (software WebGL) to ``png``."""
+    """Build the headless Chromium command that renders ``html`` (software WebGL) to ``png``.
+
+    ``fragment`` (e.g. ``"scene"``) scrolls the page to that anchor first; ``extra`` flags go before
+    the page's URL (e.g. ``--log-net-log=FILE``).
+    """
     return [
         chromium,
         "--headless",
@@ -48,14 +55,22 @@ def chromium_command(
         f"--window-size={size[0]},{size[1]}",
         f"--virtual-time-budget={budget_ms}",
         f"--screenshot={png}",
-        Path(html).resolve().as_uri(),
+        *extra,
+        Path(html).resolve().as_uri() + (f"#{fragment}" if fragment else ""),
     ]
 
 
 def screenshot(
-    html: Path | str, png: Path | str, size: tuple[int, int] = (1200, 900), timeout_s: float = 120
+    html: Path | str,
+    png: Path | str,
+    size: tuple[int, int] = (1200, 900),
+    timeout_s: float = 120,
+    fragment: str = "",
+    extra: Sequence[str] = (),
 ) -> Path:
     """Render an exported page in headless Chromium (software WebGL) and save a PNG.
+
+    ``fragment`` scrolls to an anchor of the page first; ``extra`` adds Chromium flags.
 
     Raises:
         ViewerError: no Chromium found, or it failed or produced no image.
@@ -69,7 +84,9 @@ def screenshot(
     png = Path(png)
     with tempfile.TemporaryDirectory(prefix="pkmtol-chromium-") as tmp:
         shot = Path(tmp) / "shot.png"
-        cmd = chromium_command(chromium, Path(html), shot, Path(tmp) / "profile", size)
+        cmd = chromium_command(
+            chromium, Path(html), shot, Path(tmp) / "profile", size, fragment=fragment, extra=extra
+        )
         try:
             done = subprocess.run(
                 cmd, stdin=subprocess.DEVNULL, capture_output=True, timeout=timeout_s, check=False

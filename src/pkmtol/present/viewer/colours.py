@@ -28,6 +28,7 @@ SAFE_RGB = (0.10, 0.65, 0.25)
 FAILED_RGB = (0.85, 0.10, 0.10)
 P_RGB = (0.85, 0.0, 0.85)
 BACKGROUND_RGB = (1.0, 1.0, 1.0)
+GROUND_RGB = (0.62, 0.62, 0.62)
 
 
 def viridis(t: np.ndarray) -> np.ndarray:

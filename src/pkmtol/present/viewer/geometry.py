@@ -1,4 +1,4 @@
-"""Drawing helpers of the 3D scene: node registry, transforms, rods, triads, limb skeletons, camera reach."""
+"""Drawing helpers of the 3D scene: node registry, transforms, rods, triads, skeletons, framing, ground."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pinocchio as pin
 
 from pkmtol.design.job import DesignResult
 from pkmtol.present.viewer.backend import require_meshcat
-from pkmtol.present.viewer.colours import hex_colour
+from pkmtol.present.viewer.colours import GROUND_RGB, hex_colour
 
 #: Documented API of this module (the other names serve the scene's own modules).
 __all__ = ["skeleton_geometry"]
@@ -98,9 +98,95 @@ def skeleton_geometry(model: pin.Model, radius: float = 0.02) -> pin.GeometryMod
     return gm
 
 
+#: Direction from the scene's centre to the default camera (frame K, before normalising): in front
+#: of the mechanism, to the right, and above.
+CAMERA_DIRECTION = np.array([0.8, -1.3, 1.9])
+#: Vertical field of view of meshcat's default camera [deg] (three.js PerspectiveCamera(75, …)).
+CAMERA_FOV_DEG = 75.0
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The axis-aligned bounding box of what the camera must frame (frame K) [m].
+
+    Attributes:
+        low: Shape (3,): its lower corner.
+        high: Shape (3,): its upper corner.
+        base_z_m: The lowest joint of the mechanism (where the ground grid goes below).
+    """
+
+    low: np.ndarray
+    high: np.ndarray
+    base_z_m: float
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Shape (3,): the box's centre."""
+        return (self.low + self.high) / 2
+
+    @property
+    def radius(self) -> float:
+        """Half the box's diagonal (the radius of a sphere around it)."""
+        return float(np.linalg.norm(self.high - self.low) / 2)
+
+
+def mechanism_points(result: DesignResult) -> np.ndarray:
+    """Shape (k, 3): every joint, platform frame and P of the mechanism at the design pose (K) [m]."""
+    pose = result.grid.poses[result.worst_index]
+    pts = [np.asarray(pose.p_m, dtype=float), pose.oMp.translation]
+    for limb, q in zip(result.mechanism.limbs, pose.q, strict=True):
+        data = limb.model.createData()
+        pin.forwardKinematics(limb.model, data, np.asarray(q, dtype=float))
+        pts.extend(data.oMi[j].translation for j in range(1, limb.model.njoints))
+    return np.array(pts)
+
+
+def scene_bounds(result: DesignResult) -> Bounds:
+    """The box around the mechanism at the design pose and the task-space grid (the camera frames it)."""
+    mech = mechanism_points(result)
+    pts = np.vstack([mech, result.grid.points_m])
+    low, high = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * max(float(np.linalg.norm(high - low)), 1e-3)
+    return Bounds(low=low - pad, high=high + pad, base_z_m=float(mech[:, 2].min()))
+
+
 def camera_direction(result: DesignResult) -> tuple[np.ndarray, float]:
-    """Return the unit vector from the origin to the default camera, and the scene's reach [m]."""
-    pts = np.vstack([result.grid.points_m, np.zeros((1, 3))])
-    reach = float(np.max(np.linalg.norm(pts, axis=1)))
-    d = np.array([0.8, -1.3, 1.9])
-    return d / np.linalg.norm(d), reach
+    """Return the unit vector from the scene's centre to the default camera, and the scene's radius [m]."""
+    d = CAMERA_DIRECTION / np.linalg.norm(CAMERA_DIRECTION)
+    return d, scene_bounds(result).radius
+
+
+def camera_distance(radius: float) -> float:
+    """Distance from the centre at which a sphere of ``radius`` fills the vertical field of view."""
+    return 1.05 * radius / float(np.sin(np.radians(CAMERA_FOV_DEG / 2)))
+
+
+def nice_step(length: float, lines: int = 10) -> float:
+    """A round grid spacing (1, 2 or 5 × 10ᵏ) giving about ``lines`` lines over ``length``.
+
+    >>> nice_step(1.7), nice_step(0.04)
+    (0.2, 0.005)
+    """
+    raw = max(length, 1e-9) / lines
+    k = np.floor(np.log10(raw))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * 10**k >= raw:
+            return float(round(m * 10**k, 12))
+    raise AssertionError  # unreachable
+
+
+def ground_grid(scene: Scene, path: str, bounds: Bounds) -> tuple[float, float]:
+    """Line grid in the plane just below the base, over the box's footprint; returns (z, spacing) [m]."""
+    g = require_meshcat().geometry
+    size = bounds.high - bounds.low
+    step = nice_step(float(max(size[0], size[1])))
+    z = bounds.base_z_m - 0.02 * bounds.radius
+    lo = np.floor(bounds.low[:2] / step) * step - step
+    hi = np.ceil(bounds.high[:2] / step) * step + step
+    xs = np.arange(lo[0], hi[0] + step / 2, step)
+    ys = np.arange(lo[1], hi[1] + step / 2, step)
+    seg = [((x, lo[1], z), (x, hi[1], z)) for x in xs] + [((lo[0], y, z), (hi[0], y, z)) for y in ys]
+    pos = np.asarray(seg, dtype=np.float32).reshape(-1, 3).T
+    node = scene.node(path)
+    node.set_object(g.LineSegments(g.PointsGeometry(pos), g.LineBasicMaterial(color=hex_colour(GROUND_RGB))))
+    return float(z), step

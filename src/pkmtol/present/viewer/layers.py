@@ -10,12 +10,13 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.design.job import DesignResult
+from pkmtol.design.signoff import result_maps, verified_sigma
 from pkmtol.design.verification import sample_errors
-from pkmtol.error_model.accuracy import grid_norm_moments
+from pkmtol.error_model.accuracy import norm_moments
 from pkmtol.present.viewer.backend import require_meshcat
 from pkmtol.present.viewer.colours import FAILED_RGB, P_RGB, SAFE_RGB, hex_colour, viridis
 from pkmtol.present.viewer.geometry import Scene, rod, rod_transform, skeleton_geometry, translation, triad
-from pkmtol.present.viewer.options import ROOT, SceneOptions
+from pkmtol.present.viewer.options import GLYPH_SPACING, ROOT, SceneOptions
 
 #: Documented API of this module (the other names serve the scene's own modules).
 __all__ = ["SpheresLayer", "VerificationLayer"]
@@ -44,6 +45,14 @@ class SpheresLayer:
         sigma_source: ``"search"`` or ``"design"`` (:attr:`SceneOptions.sigma`).
         sigma_range_m: ``(min σ, max σ)`` over the grid, the ends of the colour map, in the unit
             of ``sigma_m``.
+        glyph: ``"sphere"`` or ``"ellipsoid"`` (:attr:`SceneOptions.glyph`).
+        semi_axes_m: Shape (m, 3): an ellipsoid's drawn semi-axes [m], largest first
+            (``scale_ellipsoid · √λ`` of the covariance; each at least 2 % of the largest); None
+            for spheres.
+        axes: Shape (m, 3, 3): the ellipsoids' axes (columns, frame K, right-handed), in the
+            order of ``semi_axes_m``; None for spheres.
+        ellipsoid_scale: Drawn length [m] per unit of ``√λ`` (the unit of ``sigma_m``); 0 for
+            spheres.
 
     """
 
@@ -56,6 +65,10 @@ class SpheresLayer:
     max_radius_m: float
     sigma_source: str
     sigma_range_m: tuple[float, float]
+    glyph: str = "sphere"
+    semi_axes_m: np.ndarray | None = None
+    axes: np.ndarray | None = None
+    ellipsoid_scale: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,18 +166,29 @@ def _reference_frames(f: Any, pose: Any) -> None:
     f[f"{ROOT}/reference/offset"].set_transform(rod_transform(pose.oMp.translation, p))
 
 
-def _sigma(result: DesignResult, which: str) -> np.ndarray:
+def error_covariance(result: DesignResult, which: str) -> np.ndarray:
+    """Covariance of P's error at every grid point from the mode's maps, (m, 3, 3).
+
+    ``which = "search"``: every toleranced error ``N(0, 1)`` (m² per unit error², no noise; the
+    pose search's quantity); ``"design"``: the verified design's σ_i and, after a calibration, the
+    tracker noise [m²].
+    """
+    maps = result_maps(result)
+    if which == "search":
+        L = maps.position[:, :, result.uncompensatable]
+        return L @ np.swapaxes(L, 1, 2)
+    return maps.position_covariance(verified_sigma(result))
+
+
+def _sigma(result: DesignResult, which: str, cov: np.ndarray) -> np.ndarray:
     if which == "search":
         return np.asarray(result.search.sigma_analytic_m, dtype=float)
-    unc = result.uncompensatable
-    tol = design_tolerances(result)
-    return grid_norm_moments(result.grid.J[:, :, unc], tol)[:, 1]
+    return np.array([norm_moments(np.clip(np.linalg.eigvalsh(c)[::-1], 0.0, None))[1] for c in cov])
 
 
 def design_tolerances(result: DesignResult) -> np.ndarray:
-    """Design-β tolerances of η_c; a free (+inf) tolerance has no effect: drawn as 0."""
-    tol = result.tolerances[result.uncompensatable, result.design_column]
-    return np.where(np.isfinite(tol), tol, 0.0)
+    """The verified design's σ of the toleranced errors; a free (+inf) tolerance is drawn as 0."""
+    return verified_sigma(result)[result.uncompensatable]
 
 
 def _min_spacing(points: np.ndarray) -> float:
@@ -178,9 +202,10 @@ def _min_spacing(points: np.ndarray) -> float:
 def draw_spheres(scene: Scene, result: DesignResult, opt: SceneOptions) -> SpheresLayer:
     """Layer ``pkmtol/error_spheres``: one sphere per grid point, radius ∝ σ[Δλ] (Fig. 7)."""
     g = require_meshcat().geometry
-    sigma = _sigma(result, opt.sigma)
+    cov = error_covariance(result, opt.sigma)
+    sigma = _sigma(result, opt.sigma, cov)
     points = result.grid.points_m
-    rmax = opt.max_sphere_radius_m or 0.35 * _min_spacing(points)
+    rmax = opt.max_sphere_radius_m or GLYPH_SPACING * _min_spacing(points)
     smax, smin = float(sigma.max()), float(sigma.min())
     scale = rmax / smax if smax > 0 else 0.0
     radii = scale * sigma
@@ -188,14 +213,22 @@ def draw_spheres(scene: Scene, result: DesignResult, opt: SceneOptions) -> Spher
     colours = viridis(t)
     layer = scene.node(f"{ROOT}/error_spheres")
     paths = []
+    semi, axes, e_scale = None, None, 0.0
+    if opt.glyph == "ellipsoid":
+        semi, axes, e_scale = _ellipsoids(cov, rmax)
+        radii = semi[:, 0]
     for k, (p, r, c) in enumerate(zip(points, radii, colours, strict=True)):
         path = f"{ROOT}/error_spheres/{k}"
         node = scene.node(path)
-        node.set_object(
-            g.Sphere(max(float(r), 1e-6)),
-            g.MeshLambertMaterial(color=hex_colour(c), opacity=opt.sphere_opacity),
-        )
-        node.set_transform(translation(p))
+        material = g.MeshLambertMaterial(color=hex_colour(c), opacity=opt.sphere_opacity)
+        if semi is not None and axes is not None:
+            node.set_object(g.Sphere(1.0), material)  # the unit sphere, stretched by the transform
+            t = translation(p)
+            t[:3, :3] = axes[k] * semi[k][None, :]
+            node.set_transform(t)
+        else:
+            node.set_object(g.Sphere(max(float(r), 1e-6)), material)
+            node.set_transform(translation(p))
         paths.append(path)
     layer.set_property("pkmtol_radius_per_sigma", float(scale))
     return SpheresLayer(
@@ -208,7 +241,24 @@ def draw_spheres(scene: Scene, result: DesignResult, opt: SceneOptions) -> Spher
         max_radius_m=float(rmax),
         sigma_source=opt.sigma,
         sigma_range_m=(smin, smax),
+        glyph=opt.glyph,
+        semi_axes_m=semi,
+        axes=axes,
+        ellipsoid_scale=e_scale,
     )
+
+
+def _ellipsoids(cov: np.ndarray, rmax: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Semi-axes (m, 3, largest first), right-handed axes (m, 3, 3) and scale of the 1σ ellipsoids."""
+    lam, vec = np.linalg.eigh(cov)  # ascending
+    lam, vec = lam[:, ::-1], vec[:, :, ::-1]
+    root = np.sqrt(np.clip(lam, 0.0, None))
+    top = float(root.max(initial=0.0))
+    scale = rmax / top if top > 0 else 0.0
+    semi = np.maximum(scale * root, 0.02 * rmax)
+    flip = np.linalg.det(vec) < 0
+    vec[flip, :, 2] *= -1.0
+    return semi, vec, float(scale)
 
 
 def _points(position: np.ndarray, rgb: Sequence[float], size: float) -> Any:
@@ -228,9 +278,13 @@ def draw_verification(
     scene.node(base)
     # Fig. 9 cloud: Δp = J η at the design point, magnified, around the Δλ* sphere
     rng = np.random.default_rng(opt.seed)
-    J = result.grid.J[result.worst_index][:, result.uncompensatable]
+    maps = result_maps(result)
+    J = maps.position[result.worst_index][:, result.uncompensatable]
     eta = sample_errors(opt.distribution, design_tolerances(result), opt.cloud_samples, rng)
     dp = eta @ J.T
+    N = maps.position_noise[result.worst_index]
+    if N.shape[1] and maps.noise_m > 0:  # the tracker noise a calibration leaves, Gaussian
+        dp = dp + maps.noise_m * rng.standard_normal((opt.cloud_samples, N.shape[1])) @ N.T
     dl = np.linalg.norm(dp, axis=1)
     failed = dl > target
     mag = opt.cloud_radius_m / target

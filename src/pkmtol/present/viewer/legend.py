@@ -13,7 +13,7 @@ import numpy as np
 from pkmtol.design.job import DesignResult
 from pkmtol.present.viewer.backend import require_meshcat
 from pkmtol.present.viewer.colours import VIRIDIS, viridis
-from pkmtol.present.viewer.geometry import Scene, camera_direction
+from pkmtol.present.viewer.geometry import Bounds, Scene, camera_direction
 from pkmtol.present.viewer.layers import SpheresLayer, VerificationLayer
 from pkmtol.present.viewer.options import ROOT
 
@@ -51,21 +51,32 @@ def legend_lines(
         else:
             what = "σ[Δλ] at the design tolerances"
             rng = f"{1e6 * smin:.3g} … {1e6 * smax:.3g} µm"
-        lines.append(f"Error spheres ({spheres.count}): radius = {spheres.radius_per_sigma:.4g} × {what}")
-        lines.append(f"  colour viridis over σ = {rng}; largest radius {1e3 * spheres.max_radius_m:.0f} mm")
+        if spheres.glyph == "ellipsoid":
+            lines.append(
+                f"Error ellipsoids ({spheres.count}): the 1σ ellipsoid of P's error, semi-axes = "
+                f"{spheres.ellipsoid_scale:.4g} × √λ of its covariance"
+                + (" (η_c ~ N(0,1))" if spheres.sigma_source == "search" else " (design tolerances)")
+            )
+        else:
+            lines.append(f"Error spheres ({spheres.count}): radius = {spheres.radius_per_sigma:.4g} × {what}")
+        lines.append(f"  colour viridis over σ = {rng}; largest {1e3 * spheres.max_radius_m:.0f} mm")
     v = verification
     if v is not None:
         pct = 100 * v.cloud_failed / v.cloud_samples
+        design = "β = " + f"{result.design_beta:g}" if result.method_design is None else "verified"
         lines.append(
-            f"Verification cloud ({v.distribution} errors at the β = {result.design_beta:g} "
-            f"tolerances): {v.cloud_samples} position errors Δp at the design point, "
-            f"×{v.cloud_magnification:.0f}; blue sphere = Δλ* = {1e3 * result.target_m:g} mm"
+            f"Cloud at the design point only (grid point {result.worst_index}): {v.cloud_samples} "
+            f"position errors Δp ({v.distribution} errors at the {design} tolerances), "
+            f"×{v.cloud_magnification:.0f} around the blue Δλ* = {1e3 * result.target_m:g} mm sphere"
         )
-        lines.append(f"  green ‖Δp‖ ≤ Δλ*, red beyond: {v.cloud_failed} ({pct:.1f} %)")
+        lines.append(
+            f"  failure rate AT THE DESIGN POINT: {v.cloud_failed} of {v.cloud_samples} beyond Δλ* "
+            f"({pct:.1f} %; green ‖Δp‖ ≤ Δλ*, red beyond)"
+        )
         n, k = v.task_space_samples, v.task_space_failed
         lines.append(
-            f"Verification run over the task space: {k} of {n} samples failed "
-            f"({100 * k / max(n, 1):.2f} %), drawn red at their points"
+            f"Failure rate OVER THE WHOLE TASK SPACE (the verification run, {n} samples at random "
+            f"poses): {k} beyond Δλ* ({100 * k / max(n, 1):.2f} %), red dots at their poses"
             + ("; safe ones green" if v.safe_visible else " (safe ones hidden)")
         )
     lines.append("Reference: P magenta, platform frame x/y/z = red/green/blue")
@@ -132,14 +143,14 @@ def _legend_png(lines: list[str], with_bar: bool) -> bytes:
     return buf.getvalue()
 
 
-def draw_legend(scene: Scene, result: DesignResult, lines: list[str], with_bar: bool) -> None:
+def draw_legend(scene: Scene, result: DesignResult, lines: list[str], with_bar: bool, bounds: Bounds) -> None:
     """Draw the legend as a textured panel left of the mechanism, facing the default camera."""
     g = require_meshcat().geometry
     png = _legend_png(lines, with_bar)
     from PIL import Image
 
     w, h = Image.open(io.BytesIO(png)).size
-    _, reach = camera_direction(result)
+    reach = bounds.radius
     width = 1.1 * reach
     height = width * h / w
     node = scene.node(f"{ROOT}/legend")
@@ -152,7 +163,7 @@ def draw_legend(scene: Scene, result: DesignResult, lines: list[str], with_bar: 
     # the textured face is the box's -y face: local y points away from the camera
     t[:3, 0], t[:3, 1] = right, -c
     t[:3, 2] = np.cross(right, -c)
-    t[:3, 3] = -right * 1.0 * reach + np.array([0.0, 0.0, 0.2 * reach])
+    t[:3, 3] = bounds.centre - right * 1.0 * reach + np.array([0.0, 0.0, 0.2 * reach])
     node.set_transform(t)
 
 

@@ -11,7 +11,11 @@ from pkmtol.present.viewer.colours import BACKGROUND_RGB
 #: Root of everything pkmtol draws, below meshcat's ``/meshcat``.
 ROOT = "pkmtol"
 #: The layers, each its own meshcat path ``pkmtol/<layer>``.
-LAYERS = ("robot", "error_spheres", "verification", "reference", "legend")
+LAYERS = ("robot", "error_spheres", "verification", "reference", "legend", "ground")
+#: Glyphs of the error layer: a sphere of radius ∝ σ[Δλ], or the 1σ ellipsoid of P's error.
+GLYPHS = ("sphere", "ellipsoid")
+#: Default radius of the largest glyph, relative to the smallest distance between two grid points.
+GLYPH_SPACING = 0.2
 
 
 @dataclass(frozen=True)
@@ -21,10 +25,14 @@ class SceneOptions:
     Attributes:
         sigma: ``"search"`` (η_c ~ N(0, 1), the paper's Fig. 7) or ``"design"`` (η_c at the
             design-β tolerances) for the error spheres.
-        max_sphere_radius_m: Radius of the largest error sphere [m] (None: 0.35 × the smallest
-            distance between two grid points).
-        sphere_opacity: Opacity of the error spheres (1: opaque; below, the mechanism shows
-            through).
+        max_sphere_radius_m: Radius of the largest error sphere (or largest semi-axis of an
+            ellipsoid) [m] (None: :data:`GLYPH_SPACING` = 0.2 × the smallest distance between two
+            grid points, so that the mechanism stays visible between them).
+        sphere_opacity: Opacity of the error spheres (1: opaque; the default 0.35 lets the
+            mechanism show through).
+        glyph: ``"sphere"`` (default) or ``"ellipsoid"``: the 1σ ellipsoid of P's error, from the
+            covariance ``L Σ Lᵀ (+ σ_m² N Nᵀ)`` of the compensation mode's maps at each grid point,
+            so that the direction of the error shows.
         distribution: Verification distribution drawn (one of ``montecarlo.DISTRIBUTIONS``).
         cloud_radius_m: Drawn radius of the Δλ* sphere of the verification cloud [m]
             (magnification = ``cloud_radius_m / Δλ*``).
@@ -42,7 +50,8 @@ class SceneOptions:
     sigma: str = "search"
     max_sphere_radius_m: float | None = None
     distribution: str = "gaussian"
-    sphere_opacity: float = 0.75
+    sphere_opacity: float = 0.35
+    glyph: str = "sphere"
     cloud_radius_m: float = 0.15
     cloud_samples: int = 2000
     show_safe_samples: bool = False
@@ -62,6 +71,10 @@ class SceneOptions:
         unknown = set(self.layers) - set(LAYERS)
         if unknown:
             raise InvalidRequestError(f"unknown layers {sorted(unknown)}; choose from {', '.join(LAYERS)}")
+        if self.glyph not in GLYPHS:
+            raise InvalidRequestError(f"glyph must be one of {', '.join(GLYPHS)}, got {self.glyph!r}")
+        if not 0 < self.sphere_opacity <= 1:
+            raise InvalidRequestError(f"sphere_opacity must be in (0, 1], got {self.sphere_opacity!r}")
         if self.max_sphere_radius_m is not None and not self.max_sphere_radius_m > 0:
             raise InvalidRequestError("max_sphere_radius_m must be > 0")
         if not self.cloud_radius_m > 0 or self.cloud_samples < 1:

@@ -9,7 +9,15 @@ import numpy as np
 
 from pkmtol.design.job import DesignResult
 from pkmtol.present.viewer.backend import require_meshcat
-from pkmtol.present.viewer.geometry import Scene, camera_direction
+from pkmtol.present.viewer.geometry import (
+    Bounds,
+    Scene,
+    camera_direction,
+    camera_distance,
+    ground_grid,
+    scene_bounds,
+    translation,
+)
 from pkmtol.present.viewer.layers import (
     SpheresLayer,
     VerificationLayer,
@@ -44,6 +52,13 @@ class SceneSummary:
             exported page; computed even when that layer is off).
         nodes: Every node path drawn, relative to ``/meshcat``, without duplicates, in drawing
             order.
+        bounds: The box around the mechanism (design pose) and the task-space grid that the
+            camera frames.
+        offset_m: Shape (3,): the translation of the ``pkmtol`` node: everything pkmtol draws is
+            shifted by it, so that the box's centre sits at meshcat's origin, which its orbit
+            controls always look at (a point ``p`` of K is drawn at ``p + offset_m``).
+        camera_m: Shape (3,): the default camera's position relative to the box's centre (K axes).
+        ground: ``(z [m], spacing [m])`` of the ground grid in K; None without the ``ground`` layer.
 
     """
 
@@ -57,18 +72,24 @@ class SceneSummary:
     verification: VerificationLayer | None
     legend: tuple[str, ...]
     nodes: tuple[str, ...]
+    bounds: Bounds | None = None
+    offset_m: np.ndarray | None = None
+    camera_m: np.ndarray | None = None
+    ground: tuple[float, float] | None = None
 
 
-def _set_camera(vis: Any, result: DesignResult) -> None:
-    """Point the default camera at the mechanism.
+def _set_camera(vis: Any, result: DesignResult, bounds: Bounds) -> np.ndarray:
+    """Frame the mechanism and the task space: the camera at the right distance from the box's centre.
 
-    meshcat 0.3's orbit controls always look at the world origin (the base of K), so only the
-    camera position is set: above and in front of the task space, far enough to see it all.
+    meshcat 0.3's orbit controls always look at meshcat's origin; the ``pkmtol`` node is shifted
+    so that the box's centre is there (:func:`build_scene`). Returns the camera position relative
+    to the centre (K axes) [m].
     """
-    c, reach = camera_direction(result)
-    d = c * 2.1 * reach
+    c, _ = camera_direction(result)
+    d = c * camera_distance(bounds.radius)
     # the camera's position is in meshcat's y-up frame: (x, z_up, -y)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [d[0], d[2], -d[1]])
+    return d
 
 
 def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = None) -> SceneSummary:
@@ -92,6 +113,14 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
     opt = options or SceneOptions()
     scene = Scene(vis)
     vis[ROOT].delete()
+    bounds = scene_bounds(result)
+    offset = -bounds.centre
+    vis[ROOT].set_transform(translation(offset))
+    # meshcat's own grid and axes sit at its origin, now the middle of the scene: the ground grid
+    # below the base replaces them
+    vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
+    ground = ground_grid(scene, f"{ROOT}/ground", bounds) if "ground" in opt.layers else None
     if opt.background_rgb is not None:
         vis["/Background"].set_property("top_color", list(opt.background_rgb))
         vis["/Background"].set_property("bottom_color", list(opt.background_rgb))
@@ -107,9 +136,8 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
     verification = draw_verification(scene, result, opt, rmax) if "verification" in opt.layers else None
     legend = legend_lines(result, spheres, verification)
     if "legend" in opt.layers:
-        draw_legend(scene, result, legend, "error_spheres" in opt.layers)
-    if opt.camera:
-        _set_camera(vis, result)
+        draw_legend(scene, result, legend, "error_spheres" in opt.layers, bounds)
+    camera = _set_camera(vis, result, bounds) if opt.camera else None
     return SceneSummary(
         root=f"{vis.path.lower()}/{ROOT}",
         layers={name: f"{ROOT}/{name}" for name in opt.layers},
@@ -121,4 +149,8 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
         verification=verification,
         legend=tuple(legend),
         nodes=tuple(dict.fromkeys(scene.nodes)),
+        bounds=bounds,
+        offset_m=offset,
+        camera_m=camera,
+        ground=ground,
     )
