@@ -47,8 +47,13 @@ def _fixed(name: str, parent: str, child: str, xyz: str = "0 0 0", rpy: str = "0
     return j
 
 
-def tree_urdf(folder: Path) -> tuple[str, list[tuple[str, str]], list[str], dict[str, float]]:
-    """The merged tree, the loops, the motors and the home joint values of a limb-folder robot."""
+def tree_urdf(
+    folder: Path,
+) -> tuple[str, list[tuple[str, str]], list[str], list[str], dict[str, float]]:
+    """The merged tree, the loops and their types, the motors and the home joint values of a robot.
+
+    A limb's internal loops (``[[limbs.loops]]``) become loops of the tree between the same frames.
+    """
     mech = load_mechanism(folder)
     doc = tomllib.loads((folder / "mechanism.toml").read_text(encoding="utf-8"))
     platform = doc.get("platform_link", "platform")
@@ -60,6 +65,7 @@ def tree_urdf(folder: Path) -> tuple[str, list[tuple[str, str]], list[str], dict
     joints: list[ET.Element] = []
     seen: set[str] = set()
     loops, motors, home = [], [], {}
+    inner: list[tuple[tuple[str, str], str]] = []
     for i, limb in enumerate(mech.limbs):
         assert limb.urdf_path is not None
         src = ET.parse(limb.urdf_path).getroot()
@@ -89,11 +95,15 @@ def tree_urdf(folder: Path) -> tuple[str, list[tuple[str, str]], list[str], dict
             loops.append((a, b))
         motors += [limb.joint_names[k] for k in limb.actuated]
         home.update({n: float(v) for n, v in zip(limb.joint_names, limb.home, strict=True) if v != 0.0})
+        # a limb's internal loops stay loops of the tree, listed after the limbs' closures
+        inner += [(lp.frame_names, lp.kind) for lp in limb.loops]
+    types = ["6d"] * len(loops) + [kind for _, kind in inner]
+    loops += [pair for pair, _ in inner]
     for el in links + joints:
         robot.append(el)
     ET.indent(robot, space="  ")
     text = '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-    return text, loops, motors, home
+    return text, loops, types, motors, home
 
 
 def toml_value(v: object) -> str:
@@ -108,10 +118,10 @@ def toml_value(v: object) -> str:
 
 def generate(folder: Path) -> dict[str, str]:
     """File name → text of the closed-loop form of the robot in ``folder``."""
-    urdf, loops, motors, home = tree_urdf(folder)
+    urdf, loops, types, motors, home = tree_urdf(folder)
     mech = load_mechanism(folder)
     doc = tomllib.loads((folder / "mechanism.toml").read_text(encoding="utf-8"))
-    yaml = f"closed_loop: {[list(p) for p in loops]}\ntype: {['6d'] * len(loops)}\nname_mot: {motors}\n"
+    yaml = f"closed_loop: {[list(p) for p in loops]}\ntype: {types}\nname_mot: {motors}\n"
     lines = [
         f"# {mech.name} written as one closed-loop URDF tree (robot.urdf) with its sidecar (robot.yaml);",
         f"# generated from {folder.name}/ by scripts/limbs_to_closed_loop.py; do not edit.",

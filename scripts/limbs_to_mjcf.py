@@ -1,4 +1,4 @@
-"""Write (or check) a limb-folder robot as ONE MJCF file whose loops are closed by ``<weld>`` equalities.
+"""Write (or check) a limb-folder robot as ONE MJCF file whose loops are closed by ``<weld>``/``<connect>``.
 
 The output is what ``pkmtol.model.mjcf`` reads (docs/closed-loop.md, "MJCF"): the limbs' URDFs
 nested as MJCF bodies under one jointless ``base`` body (Pinocchio's MJCF reader keeps only the
@@ -8,7 +8,9 @@ visuals become geoms (their mass comes from MuJoCo's default density, 1000 kg/mÂ
 platform body; every other limb k+1 ends in a site ``closedloop<k>_B`` at its last joint, and the
 platform carries the partner site ``closedloop<k>_A`` placed where that joint sits when the loop is
 closed (the same frames as ``scripts/limbs_to_closed_loop.py`` writes); a ``<weld>`` named
-``closedloop<k>`` makes the two sites coincide. ``<motor>`` actuators name the actuated joints, and
+``closedloop<k>`` makes the two sites coincide. A limb's internal loops (``[[limbs.loops]]``) become
+a ``<weld>`` (6d) or ``<connect>`` (3d) named ``<limb>_<loop>`` between sites at their frames (the
+limb's other fixed links). ``<motor>`` actuators name the actuated joints, and
 the keyframe ``home`` holds the limbs' home joint values. The ``mechanism.toml`` beside it holds
 pkmtol's own keys and the ``[mjcf]`` table.
 
@@ -100,19 +102,24 @@ def mjcf(folder: Path) -> tuple[str, list[str]]:
     actuator = ET.Element("actuator")
     platform_body: ET.Element | None = None
     closures: list[tuple[str, pin.SE3]] = []  # (site on the platform, its placement there)
+    loops_inner: list[ET.Element] = []
     for i, limb in enumerate(mech.limbs):
         assert limb.urdf_path is not None
         src = ET.parse(limb.urdf_path).getroot()
         links = {lk.get("name"): lk for lk in src.findall("link")}
-        parent = base
+        bodies: dict[str, ET.Element] = {str(src.find("link").get("name")): base}  # type: ignore[union-attr]
         for joint in src.findall("joint"):
             child = str(joint.find("child").get("link"))  # type: ignore[union-attr]
+            up = str(joint.find("parent").get("link"))  # type: ignore[union-attr]
+            parent = platform_body if up == platform and platform_body is not None else bodies[up]
             kind = joint.get("type")
+            if kind == "fixed" and child != platform:
+                # another fixed link (a loop's frame): a site on its parent body
+                if any(j.find("parent").get("link") == child for j in src.findall("joint")):  # type: ignore[union-attr]
+                    raise SystemExit(f"{limb.urdf_path}: fixed link '{child}' has children; not written")
+                _pose(ET.SubElement(parent, "site", name=child), urdf_origin(joint))
+                continue
             if kind == "fixed":
-                if child != platform:
-                    raise SystemExit(
-                        f"{limb.urdf_path}: fixed joint '{joint.get('name')}' is not the attachment"
-                    )
                 attach = urdf_origin(joint)
                 if i == 0:
                     platform_body = ET.SubElement(parent, "body", name=platform)
@@ -150,12 +157,18 @@ def mjcf(folder: Path) -> tuple[str, list[str]]:
                     "range", f"{_num(float(limit.get('lower', '0')))} {_num(float(limit.get('upper', '0')))}"
                 )
             _geoms(body, links[child], limb.urdf_path)
-            parent = body
+            bodies[child] = body
+        for lp in limb.loops:  # internal loops: a <weld> (6d) or a <connect> (3d) between their sites
+            tag = "weld" if lp.kind == "6d" else "connect"
+            a, b = lp.frame_names
+            loops_inner.append(ET.Element(tag, name=f"{limb.name}_{lp.name}", site1=a, site2=b))
         for k in limb.actuated:
             ET.SubElement(actuator, "motor", name=limb.joint_names[k], joint=limb.joint_names[k])
     assert platform_body is not None
     for name, placement in closures:
         _pose(ET.SubElement(platform_body, "site", name=name), placement)
+    for el in loops_inner:
+        equality.append(el)
     root.append(equality)
     root.append(actuator)
     keyframe = ET.SubElement(root, "keyframe")

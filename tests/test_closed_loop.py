@@ -20,6 +20,7 @@ from pkmtol.error_model.table import error_table
 from pkmtol.exceptions import (
     ClosedLoopError,
     ClosureFrameError,
+    LoopMismatchError,
     MechanismFormatError,
     NoLoopError,
     PkmtolError,
@@ -328,14 +329,15 @@ BAD = [
         "limb1_s4",
         ["SPHERICAL", "three revolutes"],
     ),
-    # limb 4's slide attached to limb 3's R joint: limbs 3 and 4 share limb3_r1 and limb3_r2
+    # limb 4's slide attached to limb 3's R joint: limb 4 becomes a branch of limb 3 closed by an
+    # internal loop through the platform, so the tree has 3 limbs, not the 4 the names list
     (
         "robot.urdf",
         '<parent link="limb4_l2" />',
         '<parent link="limb3_l2" />',
         ClosedLoopError,
-        None,
-        ["shared by limbs"],
+        "limbs",
+        ["4 limb names for 3 limbs"],
     ),
 ]
 
@@ -355,7 +357,7 @@ BAD = [
         "sidecar-missing",
         "type-length",
         "spherical",
-        "shared-joint",
+        "branch-of-another-limb",
     ],
 )
 def test_bad_input_names_the_culprit(tmp_path, file, old, new, error, culprit, words):
@@ -379,16 +381,33 @@ def test_tree_without_loops(tmp_path):
         load_mechanism(folder)
 
 
-def test_loops_that_do_not_meet_on_one_platform(tmp_path):
-    # closure 3's platform side moved to limb 1's leg: no link holds one side of every loop
+def test_a_loop_away_from_the_platform_joins_two_branches_into_one_limb(tmp_path):
+    # closure 3's platform side moved to limb 1's leg: limb 4 (passive) becomes a branch of limb 1
+    # closed by an internal loop, which the moved frame leaves open at home
     folder = copy_tree(
         tmp_path,
         "robot.urdf",
         '<parent link="platform" />\n    <child link="closedloop3_A" />',
         '<parent link="limb1_l3" />\n    <child link="closedloop3_A" />',
     )
-    with pytest.raises(ClosedLoopError, match="no link holds one side of every loop"):
+    (folder / "mechanism.toml").write_text(
+        (folder / "mechanism.toml")
+        .read_text(encoding="utf-8")
+        .replace('limbs = ["limb1", "limb2", "limb3", "limb4"]', 'limbs = ["limb1", "limb2", "limb3"]'),
+        encoding="utf-8",
+    )
+    with pytest.raises(LoopMismatchError, match="limb 'limb1': its loop 'closedloop3'"):
         load_mechanism(folder)
+    # closure 2's platform side moved to limb 2's leg: limbs 2 and 3 would be one limb with two motors
+    folder = copy_tree(
+        tmp_path / "two",
+        "robot.urdf",
+        '<parent link="platform" />\n    <child link="closedloop2_A" />',
+        '<parent link="limb2_l3" />\n    <child link="closedloop2_A" />',
+    )
+    with pytest.raises(ClosedLoopError, match="one limb with the motors limb2_p3, limb3_p3") as err:
+        load_mechanism(folder)
+    assert err.value.culprit == "closedloop2_A" and "topology is not handled" in str(err.value)
 
 
 def test_check_command_runs_on_the_tree():
@@ -482,7 +501,7 @@ def test_one_loop_takes_the_a_side_as_platform(tiny):
         (Sidecar(loops=(PAIR, ("a", "closedloop1_A"))), None, ClosedLoopError, "a"),
         (Sidecar(loops=(PAIR, ("closedloop1_A", "base"))), None, ClosedLoopError, "base"),
         (Sidecar(loops=(PAIR, ("closedloop1_A", "tool"))), "a", ClosedLoopError, "tool"),
-        (Sidecar(loops=(PAIR, ("closedloop1_B", "tool"))), "a", ClosedLoopError, "closedloop1_B"),
+        (Sidecar(loops=(PAIR, ("closedloop1_B", "tool"))), "a", ClosedLoopError, "tool"),
     ],
     ids=[
         "no-such-platform",
@@ -492,7 +511,7 @@ def test_one_loop_takes_the_a_side_as_platform(tiny):
         "both-on-platform",
         "closure-on-base",
         "closure-below-platform",
-        "loop-misses-platform",
+        "loop-side-below-platform",
     ],
 )
 def test_tiny_tree_refusals(tiny, sidecar, platform, error, culprit):

@@ -38,9 +38,18 @@ DOCUMENTED = {
 }  # fmt: skip
 
 
+#: Bundled robots that no family writes, and what writes them (issue 18: loops inside limbs, a planar task).
+OTHER_GENERATORS = {
+    "delta": "scripts/delta_urdf.py (URDF trees and mechanism.toml; --check in tests/test_loops.py)",
+    "fivebar": "its mechanism.toml's D–H tables through scripts/dh_to_urdf.py (tests/test_planar.py)",
+}
+
+
 def test_every_bundled_robot_has_a_family():
     bundled = {p.parent.name for p in (REPO / "robots").glob("*/mechanism.toml")}
-    assert bundled == set(FAMILIES) == set(DOCUMENTED)
+    assert set(FAMILIES) == set(DOCUMENTED)
+    assert bundled == set(FAMILIES) | set(OTHER_GENERATORS)
+    assert not set(FAMILIES) & set(OTHER_GENERATORS)
 
 
 @pytest.mark.parametrize("family", sorted(DOCUMENTED))

@@ -44,6 +44,7 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
         InvalidRequestError,
         JointLimitError,
         KinematicsError,
+        LoopMismatchError,
         LostElementError,
         MechanismFormatError,
         MissingMeshWarning,
@@ -73,7 +74,7 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
     from pkmtol.model.constraints import ConstrainedModel, constraint_models
     from pkmtol.model.drawing import DrawingSettings
-    from pkmtol.model.limb import Limb
+    from pkmtol.model.limb import Limb, LimbLoop
     from pkmtol.model.loader import load_mechanism
     from pkmtol.model.mechanism import Mechanism
     from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
@@ -100,6 +101,8 @@ _EXPORTS = {
     "JointLimitError": "pkmtol.exceptions",
     "KinematicsError": "pkmtol.exceptions",
     "Limb": "pkmtol.model.limb",
+    "LimbLoop": "pkmtol.model.limb",
+    "LoopMismatchError": "pkmtol.exceptions",
     "LostElementError": "pkmtol.exceptions",
     "MJCFError": "pkmtol.exceptions",
     "Mechanism": "pkmtol.model.mechanism",
@@ -180,6 +183,8 @@ __all__ = [
     "JointLimitError",
     "KinematicsError",
     "Limb",
+    "LimbLoop",
+    "LoopMismatchError",
     "LostElementError",
     "MJCFError",
     "Mechanism",

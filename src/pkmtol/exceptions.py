@@ -163,6 +163,21 @@ class PlatformMismatchError(PkmtolError):
         )
 
 
+class LoopMismatchError(PlatformMismatchError):
+    """An internal loop of a limb cannot be closed near ``home`` (the parent's attributes, and ``loop``)."""
+
+    def __init__(
+        self, limb: str, loop: str, frames: tuple[str, str], distance_m: float, angle_rad: float
+    ) -> None:
+        self.limb, self.loop, self.distance_m, self.angle_rad = limb, loop, distance_m, angle_rad
+        PkmtolError.__init__(
+            self,
+            f"limb '{limb}': its loop '{loop}' ({frames[0]} ↔ {frames[1]}) cannot be closed near home "
+            f"(gap {distance_m * 1e3:.3g} mm, {angle_rad:.3g} rad); check the loop's frames and the "
+            "limb's home joint values",
+        )
+
+
 # --- kinematics -------------------------------------------------------------------------
 
 

@@ -79,7 +79,7 @@ def pose_errors(
         for j, k in enumerate(idx):
             if sols.errors[j] is not None:
                 continue
-            pos[k] = sols.p_m[j] - targets_m[k]
+            pos[k] = machine.mechanism.task_error(sols.p_m[j] - targets_m[k])
             rk = rotations[k]
             rot[k] = rk @ pin.log3(rk.T @ sols.rotation[j])
             ok[k] = True

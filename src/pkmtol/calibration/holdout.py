@@ -68,7 +68,7 @@ def holdout_poses(
         raise InvalidRequestError("no random task-space target is reachable; check the task space")
     sw = sweep(mechanism, pset, np.array(points), chain, guesses=np.array(guesses))
     return Holdout(
-        maps=pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m),
+        maps=pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection),
         correction=np.array([s.correction for s in sw.separations]),
         ideal=mode_maps(sw, "ideal"),
         skipped=skipped,

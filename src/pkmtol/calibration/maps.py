@@ -11,7 +11,7 @@ every target over the calibration poses gives the identification Jacobian ``H`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +31,8 @@ class PoseMaps:
         twist: Shape (m, 6, n): ``T_k``, platform twist per unit parameter at held commands.
         actuation: Shape (m, 6, f): ``A_k``, platform twist per unit command change.
         reference_point_m: Shape (3,): P in the platform frame [m].
+        task_projection: Shape (3, 3): what of P's displacement the task counts
+            (``Mechanism.task_projection``: ``I``, or the projection onto a planar task's plane).
     """
 
     points_m: np.ndarray
@@ -40,6 +42,7 @@ class PoseMaps:
     twist: np.ndarray
     actuation: np.ndarray
     reference_point_m: np.ndarray
+    task_projection: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     def __len__(self) -> int:
         return int(self.points_m.shape[0])
@@ -55,6 +58,7 @@ class PoseMaps:
             twist=self.twist[idx],
             actuation=self.actuation[idx],
             reference_point_m=self.reference_point_m,
+            task_projection=self.task_projection,
         )
 
     def point_rows(self, targets_m: np.ndarray) -> np.ndarray:
@@ -79,15 +83,24 @@ class PoseMaps:
         return np.einsum("kij,kjn->kin", self.point_rows(targets_m), self.twist)
 
     def position_map(self) -> np.ndarray:
-        """P's position error per unit parameter at held commands (``J_total``), shape (m, 3, n)."""
-        return self.measurement_rows(self.reference_point_m[None, :])
+        """P's position error per unit parameter at held commands (``J_total``), shape (m, 3, n).
+
+        The task's part of it (:attr:`task_projection`), as ``J_total``.
+        """
+        return self.task_projection @ self.measurement_rows(self.reference_point_m[None, :])
 
     def position_actuation(self) -> np.ndarray:
-        """P's position change per unit command change, shape (m, 3, f)."""
-        return np.einsum("kij,kjf->kif", self.point_rows(self.reference_point_m[None, :]), self.actuation)
+        """P's position change (the task's part) per unit command change, shape (m, 3, f)."""
+        rows = self.task_projection @ self.point_rows(self.reference_point_m[None, :])
+        return np.einsum("kij,kjf->kif", rows, self.actuation)
 
 
-def pose_maps(grid: Sweep, actuated_idx: np.ndarray, reference_point_m: np.ndarray) -> PoseMaps:
+def pose_maps(
+    grid: Sweep,
+    actuated_idx: np.ndarray,
+    reference_point_m: np.ndarray,
+    task_projection: np.ndarray | None = None,
+) -> PoseMaps:
     """The maps of every pose of a sweep.
 
     Args:
@@ -95,6 +108,7 @@ def pose_maps(grid: Sweep, actuated_idx: np.ndarray, reference_point_m: np.ndarr
         actuated_idx: Indices of the actuated joints in the concatenated q
             (``ClosedChain.actuated_idx``).
         reference_point_m: P in the platform frame, shape (3,) [m].
+        task_projection: ``Mechanism.task_projection`` (default ``I``: the position task).
     """
     seps = grid.separations
     q = np.array([p.q_all for p in grid.poses])
@@ -109,4 +123,5 @@ def pose_maps(grid: Sweep, actuated_idx: np.ndarray, reference_point_m: np.ndarr
         twist=np.array([s.twist_map for s in seps]),
         actuation=np.array(act),
         reference_point_m=np.asarray(reference_point_m, dtype=float),
+        task_projection=np.eye(3) if task_projection is None else np.asarray(task_projection, dtype=float),
     )

@@ -70,7 +70,7 @@ def candidate_pool(
     chain = chain or ClosedChain(mechanism)
     grid_points = mechanism.task_space.grid()
     grid = grid if grid is not None else sweep(mechanism, pset, grid_points, chain)
-    maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m)
+    maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     if settings.candidates == 0:
         return maps
     rng = np.random.default_rng(settings.seed)
@@ -87,7 +87,7 @@ def candidate_pool(
     if not keep_points:
         return maps
     extra = sweep(mechanism, pset, np.array(keep_points), chain, guesses=np.array(keep_q))
-    more = pose_maps(extra, chain.actuated_idx, mechanism.reference_point_m)
+    more = pose_maps(extra, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     return concat_maps(maps, more)
 
 

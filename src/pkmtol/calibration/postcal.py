@@ -73,6 +73,7 @@ def calibrated_maps(
     twist = evaluation.twist - np.einsum("kai,kin->kan", AC, JGH)  # (m, 6, n)
     noise = -np.einsum("kai,kiM->kaM", AC, JG)  # (m, 6, M)
     rows = evaluation.point_rows(evaluation.reference_point_m[None, :])  # (m, 3, 6)
+    rows = evaluation.task_projection @ rows  # a planar task counts P's in-plane error
     return AccuracyMaps(
         mode="calibrated",
         position=np.einsum("kia,kan->kin", rows, twist),

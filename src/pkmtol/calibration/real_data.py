@@ -134,7 +134,7 @@ def calibrate_measurements(
     scale = settings.manufacturing_sigma(pset) if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, settings.manufacturing_sigma(pset))
     columns = settings.controller_columns(pset, classes)
-    grid_maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m)
+    grid_maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     H_grid = grid_maps.measurement_rows(targets).reshape(-1, len(pset))
     pool = identifiability(
         H_grid,
@@ -149,7 +149,7 @@ def calibrate_measurements(
     q = nominal_poses(mechanism, chain, grid, measurements.commands, path, measurements.lines)
     points = np.array([chain.forward(u, qk).p_m for u, qk in zip(measurements.commands, q, strict=True)])
     sw = sweep(mechanism, pset, points, chain, guesses=q)
-    maps = pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m)
+    maps = pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     H = maps.measurement_rows(targets).reshape(-1, len(pset))
     if H.shape[0] < pool.rank:
         raise MeasurementFileError(

@@ -86,13 +86,32 @@ def calibrated_urdfs(mechanism: Mechanism, pset: ParameterSet, estimate: np.ndar
             _set_origin(joint, placement)
         attach = joints.get(limb.attach_name)
         if attach is None:
-            if np.any(e[-1] != 0.0):
+            if np.any(e[limb.nq] != 0.0):
                 raise CalibrationError(
                     f"limb '{limb.name}': no fixed joint '{limb.attach_name}' attaches the platform in "
                     f"{path.name}, so its identified error cannot be written"
                 )
         else:
-            _set_origin(attach, _origin(attach) * pin.exp6(e[-1]))
+            delta = pin.exp6(e[limb.nq])
+            _set_origin(attach, _origin(attach) * delta)
+            # the attachment error moves the platform frame only (pkmtol's model): links fixed below
+            # the platform link (a loop's socket) keep their place
+            below = str(_child(attach))
+            for j in joints.values():
+                parent = j.find("parent")
+                if j.get("type") == "fixed" and parent is not None and parent.get("link") == below:
+                    _set_origin(j, delta.inverse() * _origin(j))
+        for k, lp in enumerate(limb.loops):  # a loop's error: the fixed joint of its frame b's link
+            fixed = [
+                j for j in joints.values() if j.get("type") == "fixed" and _child(j) == lp.frame_names[1]
+            ]
+            if fixed:
+                _set_origin(fixed[0], _origin(fixed[0]) * pin.exp6(e[limb.nq + 1 + k]))
+            elif np.any(e[limb.nq + 1 + k] != 0.0):
+                raise CalibrationError(
+                    f"limb '{limb.name}': loop '{lp.name}''s frame '{lp.frame_names[1]}' is not a link "
+                    f"attached by a fixed joint in {path.name}, so its identified error cannot be written"
+                )
         ET.indent(root, "  ")
         out[path.name] = (
             '<?xml version="1.0"?>\n<!-- calibrated by pkmtol calibrate: joint origins carry the '
@@ -119,6 +138,10 @@ def calibrated_toml(mechanism: Mechanism, pset: ParameterSet, estimate: np.ndarr
         "[reference_point]",
         f"position_m = {_list(mechanism.reference_point_m)}",
         "",
+    ]
+    if mechanism.task_normal is not None:
+        lines += ["[task]", 'kind = "planar"', f"normal = {_list(mechanism.task_normal)}", ""]
+    lines += [
         "[task_space]",
     ]
     if ts.kind == "cylinder":
@@ -154,7 +177,21 @@ def calibrated_toml(mechanism: Mechanism, pset: ParameterSet, estimate: np.ndarr
             f"actuated = [{acted}]",
             f"home = {_list(home)}",
         ]
+        for lp in limb.loops:
+            frames = ", ".join(_q(f) for f in lp.frame_names)
+            lines += [
+                "",
+                "[[limbs.loops]]",
+                f"name = {_q(lp.name)}",
+                f"frames = [{frames}]",
+                f"type = {_q(lp.kind)}",
+            ]
     return "\n".join(lines) + "\n"
+
+
+def _child(joint: ET.Element) -> str | None:
+    child = joint.find("child")
+    return None if child is None else child.get("link")
 
 
 def _platform_link(mechanism: Mechanism) -> str:

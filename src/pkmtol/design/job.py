@@ -397,7 +397,7 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     t0 = time.perf_counter()
     points = mechanism.task_space.sample(rng, min(opt.verification_poses, opt.samples))
     rnd = sweep(mechanism, pset, points, chain, guesses=guesses_near(grid, points), progress=opt.progress)
-    rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m)
+    rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     timings["verification poses"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -563,4 +563,4 @@ def _noise_covariance(maps: AccuracyMaps) -> np.ndarray | None:
 
 
 def _pose_maps(sweep_: Sweep, chain: ClosedChain, mechanism: Mechanism) -> PoseMaps:
-    return pose_maps(sweep_, chain.actuated_idx, mechanism.reference_point_m)
+    return pose_maps(sweep_, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)

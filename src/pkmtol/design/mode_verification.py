@@ -49,7 +49,7 @@ def ideal_exact(mechanism: Mechanism, pset: ParameterSet, sweep_: Sweep, correct
         except KinematicsError:
             return None
         r = pose.oMp.rotation
-        return actual.p_m - pose.p_m, r @ pin.log3(r.T @ actual.oMp.rotation)
+        return mechanism.task_error(actual.p_m - pose.p_m), r @ pin.log3(r.T @ actual.oMp.rotation)
 
     return error
 

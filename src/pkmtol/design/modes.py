@@ -51,11 +51,20 @@ class ModeSetup:
     plan: CalibrationPlan | None
     background: np.ndarray
 
-    def maps_at(self, sweep_: Sweep, actuated_idx: np.ndarray, reference_point_m: np.ndarray) -> AccuracyMaps:
-        """The same mode's maps at other poses (e.g. the random verification poses)."""
+    def maps_at(
+        self,
+        sweep_: Sweep,
+        actuated_idx: np.ndarray,
+        reference_point_m: np.ndarray,
+        task_projection: np.ndarray | None = None,
+    ) -> AccuracyMaps:
+        """The same mode's maps at other poses (e.g. the random verification poses).
+
+        ``task_projection``: the mechanism's (``Mechanism.task_projection``; default the position task).
+        """
         if self.plan is None:
             return mode_maps(sweep_, self.mode)
-        maps = pose_maps(sweep_, actuated_idx, reference_point_m)
+        maps = pose_maps(sweep_, actuated_idx, reference_point_m, task_projection)
         return calibrated_maps(maps, self.plan.H, self.plan.ident, self.plan.prior_sigma)
 
 
@@ -99,7 +108,10 @@ def mode_setup(
     pool = candidate_pool(mechanism, pset, settings, chain, grid=grid)
     plan = make_plan(mechanism, pset, classes, settings, pool, scale)
     maps = calibrated_maps(
-        pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m), plan.H, plan.ident, plan.prior_sigma
+        pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection),
+        plan.H,
+        plan.ident,
+        plan.prior_sigma,
     )
     survives = _surviving(maps, grid, tilt_axis)
     cols = np.array([i for i in nonabs if survives[i]], dtype=int)

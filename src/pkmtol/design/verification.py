@@ -393,7 +393,7 @@ def _exact_chunk(task: _ExactTask) -> tuple[np.ndarray, KinematicsError | None]:
     for pos, s in enumerate(run):
         err = sols.errors[pos]
         if err is None:
-            out[s] = float(np.linalg.norm(sols.p_m[pos] - task.p_nominal_m[s]))
+            out[s] = float(np.linalg.norm(task.mechanism.task_error(sols.p_m[pos] - task.p_nominal_m[s])))
         elif not isinstance(err, ConvergenceError):
             return out, err  # cannot be assembled only when Newton does not converge
     return out, None
@@ -407,7 +407,7 @@ def exact_position_error(
     index: int,
     eta: np.ndarray,
 ) -> float:
-    """``‖P_actual − P_nominal‖`` [m] of the perturbed mechanism with the Eq. 25 correction (one sample).
+    """``‖P_actual − P_nominal‖`` [m] (the task's part) of the perturbed mechanism with Eq. 25 (one sample).
 
     The actuators are commanded to their nominal values plus ``correction · η`` (the calibrated
     compensation); the perturbed closed chain is solved exactly (the per-pose reference of the
@@ -420,4 +420,4 @@ def exact_position_error(
     pchain = ClosedChain(mechanism, models=models, check_limits=False)
     u = pose.q_all[chain.actuated_idx] + sep.correction @ eta
     actual = pchain.forward(u, pose.q_all, offsets)
-    return float(np.linalg.norm(actual.p_m - pose.p_m))
+    return float(np.linalg.norm(mechanism.task_error(actual.p_m - pose.p_m)))

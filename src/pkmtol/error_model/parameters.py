@@ -10,11 +10,14 @@ Two parameter sets (DESIGN.md, "Geometric error parameters"):
   actuated joint's zero offset is named ``ξ_{a,i}`` (the paper's Table IV).
 
 Every parameter is a fixed linear combination of "raw" limb errors: the 6 components of each
-origin error (``6·(nq+1)`` of them, last block the platform attachment) and the ``nq`` joint
-offsets. At a pose, the raw columns are Pinocchio's kinematic regressor (origin errors, which
-``computeFrameKinematicRegressor`` linearises exactly as ``jointPlacements[j] · exp6(ε)``), the
-identity (platform attachment) and the frame Jacobian (offsets), all in the platform frame; they
-are then expressed in K' (``diag(R, R)``, i.e. Pinocchio's LOCAL_WORLD_ALIGNED).
+origin error (``6·(nq+1+loops)`` of them: the joints, the platform attachment, then each internal
+loop's frame b, named ``<limb>.<loop>.<component>``; a ``3d`` loop contributes only its 3
+translations) and the ``nq`` joint offsets. At a pose, the raw columns are Pinocchio's kinematic
+regressor (origin errors, which ``computeFrameKinematicRegressor`` linearises exactly as
+``jointPlacements[j] · exp6(ε)``), the identity (platform attachment) and the frame Jacobian
+(offsets), all in the platform frame; they are then expressed in K' (``diag(R, R)``, i.e.
+Pinocchio's LOCAL_WORLD_ALIGNED). A limb's internal loops are eliminated from them by
+:mod:`pkmtol.error_model.limb_motion`.
 """
 
 from __future__ import annotations
@@ -57,8 +60,9 @@ class ParameterSet:
     Attributes:
         kind: ``"urdf"`` or ``"dh"``.
         parameters: All parameters, limb by limb.
-        selections: Per limb, shape ``(6·(nq+1) + nq, m_i)``: column ``k`` is parameter ``k`` of the
-            limb as a combination of raw errors (origin components, then joint offsets).
+        selections: Per limb, shape ``(Limb.n_raw, m_i)``: column ``k`` is parameter ``k`` of the
+            limb as a combination of raw errors (origin components — joints, platform attachment,
+            loops — then joint offsets).
         slices: Per limb, the slice of ``parameters`` that belongs to it.
     """
 
@@ -88,14 +92,14 @@ class ParameterSet:
             mechanism: The mechanism this set belongs to.
 
         Returns:
-            ``(eps, offsets)``: per limb ``ε`` of shape (nq_i + 1, 6) for
+            ``(eps, offsets)``: per limb ``ε`` of shape (``Limb.n_origins``, 6) for
             :func:`pkmtol.kinematics.perturbation.perturbed_limb_models`, and joint offsets (Σ nq_i,).
         """
         eps, offsets = [], []
         for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
             raw = sel @ eta[sl]
-            n_orig = 6 * (limb.nq + 1)
-            eps.append(raw[:n_orig].reshape(limb.nq + 1, 6))
+            n_orig = 6 * limb.n_origins
+            eps.append(raw[:n_orig].reshape(limb.n_origins, 6))
             offsets.append(raw[n_orig:])
         return eps, np.concatenate(offsets)
 
@@ -107,15 +111,15 @@ class ParameterSet:
             mechanism: The mechanism this set belongs to.
 
         Returns:
-            ``(eps, offsets)``: per limb ``ε`` of shape (c, nq_i + 1, 6) (the ``eps`` of
+            ``(eps, offsets)``: per limb ``ε`` of shape (c, ``Limb.n_origins``, 6) (the ``eps`` of
             :meth:`pkmtol.kinematics.batch.BatchChain.forward`), and offsets (c, Σ nq_i).
         """
         eta = np.asarray(eta, dtype=float).reshape(-1, len(self))
         eps, offsets = [], []
         for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
             raw = eta[:, sl] @ sel.T
-            n_orig = 6 * (limb.nq + 1)
-            eps.append(raw[:, :n_orig].reshape(-1, limb.nq + 1, 6))
+            n_orig = 6 * limb.n_origins
+            eps.append(raw[:, :n_orig].reshape(-1, limb.n_origins, 6))
             offsets.append(raw[:, n_orig:])
         return eps, np.concatenate(offsets, axis=1)
 
@@ -156,16 +160,28 @@ def default_set(mechanism: Mechanism) -> str:
 
 def _urdf_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:
     nq = limb.nq
-    n_raw = 6 * (nq + 1) + nq
+    n_raw = limb.n_raw
     params: list[ErrorParameter] = []
     origins = list(limb.joint_names) + [limb.attach_name]
     for oname in origins:
         for c, comp in enumerate(COMPONENTS):
             params.append(ErrorParameter(f"{limb.name}.{oname}.{comp}", i, "m" if c < 3 else "rad"))
+    raw_cols = list(range(6 * (nq + 1)))
+    for k, lp in enumerate(limb.loops):
+        # a point loop's closure error is where its point b sits: the rotation of frame b is idle
+        comps = range(6) if lp.kind == "6d" else range(3)
+        for c in comps:
+            params.append(
+                ErrorParameter(f"{limb.name}.{lp.name}.{COMPONENTS[c]}", i, "m" if c < 3 else "rad")
+            )
+            raw_cols.append(6 * (nq + 1 + k) + c)
     for k, jname in enumerate(limb.joint_names):
         unit = "rad" if limb.joint_kinds[k] == "R" else "m"
         params.append(ErrorParameter(f"{limb.name}.{jname}.offset", i, unit, actuator=k in limb.actuated))
-    return params, np.eye(n_raw)
+        raw_cols.append(6 * limb.n_origins + k)
+    if len(raw_cols) == n_raw:
+        return params, np.eye(n_raw)
+    return params, np.eye(n_raw)[:, raw_cols]
 
 
 def _dh_limb(i: int, limb: Limb) -> tuple[list[ErrorParameter], np.ndarray]:

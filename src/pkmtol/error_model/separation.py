@@ -30,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 import pkmtol.values as values
+from pkmtol.error_model.limb_motion import loop_motion
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.twists import raw_columns_local, to_k_prime
 from pkmtol.exceptions import KinematicsError, MobilityError, SingularPoseError
@@ -51,8 +52,10 @@ class Separation:
 
     Attributes:
         pose: The closed-chain pose.
-        joint_twists: Per limb, shape (6, nq_i): unit joint twists.
-        error_columns: Shape (6, n): error twist of each parameter on its own limb (``T_c`` of Eq. 4).
+        joint_twists: Per limb, shape (6, nq_i): unit joint twists; for a limb with internal loops
+            its motion space ``T̃`` (6, k), the actuated motion first (docs/theory.md, "General loops").
+        error_columns: Shape (6, n): error twist of each parameter on its own limb (``T_c`` of Eq. 4;
+            ``E'`` for a limb with loops: its loops closed again by passive motion).
         W_a: Shape (6, f): actuation wrenches, limb order.
         W_c: Shape (6, c): constraint wrenches, limb order.
         constraint_limb: Shape (c,): limb index of each constraint wrench.
@@ -65,11 +68,15 @@ class Separation:
         correction: Shape (f, n): Eq. 25, actuator command change ``Δu = correction · η`` [m, rad].
         uncompensated_map: Shape (6, n): ``W⁻ᵀ [0; Y_c]``, the pose error left after Eq. 25.
         lever_m: Shape (3,): ``l``, vector O' → P in K [m].
-        J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23).
+        J: Shape (3, n): position error of P after compensation, ``Δλ = ‖J η‖`` (Eq. 23); for a
+            planar task its in-plane part (``Mechanism.task_projection``).
         J_total: Shape (3, n): position error of P without compensation (traditional method).
-        redundancy: ``f + c − 6``: number of linearly dependent wrenches (over-constraint).
-        incompatible_map: Shape (f + c, n): ``Y − Wᵀ twist_map``; non-zero columns are errors that
-            an over-constrained mechanism cannot assemble with rigid links (assembly errors).
+        redundancy: ``f + c − 6`` (number of linearly dependent wrenches, over-constraint) plus
+            the number of dependent loop equations inside the limbs.
+        incompatible_map: Shape (f + c + inner, n): ``Y − Wᵀ twist_map``, then the loop rows no
+            joint motion of their limb closes (:mod:`pkmtol.error_model.limb_motion`); non-zero
+            columns are errors that an over-constrained mechanism cannot assemble with rigid links
+            (assembly errors).
         actuation_map: Shape (6, f): platform twist per unit actuator motion [m or rad per m or
             rad], ``W⁻ᵀ [diag(Λ_a); 0]`` (from Eq. 7 with η = 0); a change ``Δu`` of the actuator
             commands moves the platform by ``actuation_map · Δu``.
@@ -112,7 +119,9 @@ def unit_screw(w: np.ndarray) -> np.ndarray:
     return w / (f if f > 1e-9 * np.linalg.norm(w) else np.linalg.norm(w[3:]))
 
 
-def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose: Pose) -> Separation:
+def separate(
+    mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose: Pose, general: bool = False
+) -> Separation:
     """The error model and its separation at ``pose``.
 
     Args:
@@ -120,6 +129,9 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         pset: The error-parameter set.
         chain: A solver workspace of the mechanism (its models and datas are reused).
         pose: A closed-chain pose of the mechanism.
+        general: Treat every limb as a limb with loops (its motion space ``T̃`` and columns ``E'``,
+            :mod:`pkmtol.error_model.limb_motion`), serial ones included: the same results to
+            round-off (the reduction test); default: serial limbs take the direct path.
 
     Raises:
         SingularPoseError: W is singular (or nearly) at this pose.
@@ -134,12 +146,31 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
     W_a, W_c, act_limb, con_limb, lam = [], [], [], [], []
     Y_rows_a: list[np.ndarray] = []
     Y_rows_c: list[np.ndarray] = []
+    inner: list[np.ndarray] = []  # rows of errors no joint motion closes inside a limb
     rot = pose.oMp.rotation
     for i, limb in enumerate(mechanism.limbs):
-        raw, jac, _ = raw_columns_local(limb, chain.models[i], chain.datas[i], pose.q[i])
-        t_i = to_k_prime(rot, jac)
-        e_i = to_k_prime(rot, raw @ pset.selections[i])
         sl = pset.slices[i]
+        acts: tuple[int, ...] = limb.actuated
+        if limb.loops or general:
+            # the limb's loops eliminated: motion space T̃ (actuator first) and error columns E'
+            lm = loop_motion(
+                limb,
+                chain.models[i],
+                chain.datas[i],
+                pose.q[i][None],
+                rot[None],
+                pset.selections[i],
+                pose.p_m[None],
+            )
+            t_i, e_i, acts = lm.twists[0], lm.errors[0], lm.actuated
+            for row in lm.incompatible[0]:
+                full = np.zeros(n)
+                full[sl] = row
+                inner.append(full)
+        else:
+            raw, jac, _ = raw_columns_local(limb, chain.models[i], chain.datas[i], pose.q[i])
+            t_i = to_k_prime(rot, jac)
+            e_i = to_k_prime(rot, raw @ pset.selections[i])
         cols[:, sl] = e_i
         twists.append(t_i)
         # one SVD of the joint twists gives both wrench sets: T_i = U_r S_r V_rᵀ
@@ -152,11 +183,11 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
             row = np.zeros(n)
             row[sl] = wc[:, k] @ e_i
             Y_rows_c.append(row)
-        for a in limb.actuated:
+        for a in acts:
             # w ∈ range(T_i) (⟂ W_c) and reciprocal to the passive twists: row a of the
             # pseudo-inverse T_i⁺ = V_r S_r⁻¹ U_rᵀ, since T_i⁺ T_i = I when the joints are independent
             w = u[:, :rank] @ (vt[:rank, a] / sv[:rank])
-            passive = [j for j in range(limb.nq) if j != a]
+            passive = [j for j in range(t_i.shape[1]) if j != a]
             reciprocity = max(abs(w @ t_i[:, a] - 1.0), np.abs(w @ t_i[:, passive]).max(initial=0.0))
             if not reciprocity < 1e-6:
                 raise MobilityError(
@@ -192,9 +223,9 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
     Y = np.vstack([Y_a, Y_c])
     twist_map = W_inv_T @ Y
     unc = W_inv_T[:, f:] @ Y_c
-    incompatible = Y - W.T @ twist_map
+    incompatible = np.vstack([Y - W.T @ twist_map] + [np.array(inner).reshape(-1, n)])
     lever = rot @ mechanism.reference_point_m
-    to_p = np.hstack([np.eye(3), -pin.skew(lever)])
+    to_p = mechanism.task_projection @ np.hstack([np.eye(3), -pin.skew(lever)])
     lam_arr = np.array(lam)
     return Separation(
         pose=pose,
@@ -214,7 +245,7 @@ def separate(mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain, pose:
         lever_m=lever,
         J=to_p @ unc,
         J_total=to_p @ twist_map,
-        redundancy=W.shape[1] - 6,
+        redundancy=W.shape[1] - 6 + len(inner),
         incompatible_map=incompatible,
         actuation_map=W_inv_T[:, :f] * lam_arr[None, :],
     )
@@ -277,20 +308,34 @@ def _stacked(
     twists, wa, wc, act_limb, con_limb, lam, ya_rows, yc_rows = [], [], [], [], [], [], [], []
     errors: list[KinematicsError | None] = [None] * b
     fallback = np.zeros(b, dtype=bool)
+    inner: list[np.ndarray] = []
     for i, limb in enumerate(mechanism.limbs):
         model, data, fid = batch.models[i], batch.datas[i], batch.fids[i]
         cols_q = slice(int(batch.offsets[i]), int(batch.offsets[i + 1]))
-        jac = sols.jacobians[i][idx]
-        n_reg = 6 * limb.nq
-        reg = np.empty((b, 6, n_reg))
-        for pos, k in enumerate(idx):
-            pin.forwardKinematics(model, data, sols.q[k, cols_q])
-            reg[pos] = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
-        sel = pset.selections[i]
-        local = reg @ sel[:n_reg] + sel[n_reg : n_reg + 6] + jac @ sel[n_reg + 6 :]
-        t_i = _to_k_prime(rot, jac)
-        e_i = _to_k_prime(rot, local)
         sl = pset.slices[i]
+        acts: tuple[int, ...] = limb.actuated
+        if limb.loops:
+            try:
+                lm = loop_motion(limb, model, data, sols.q[idx, cols_q], rot, pset.selections[i], p_m)
+            except MobilityError:  # the per-pose path names the pose
+                return [None] * b
+            t_i, e_i, acts = lm.twists, lm.errors, lm.actuated
+            fallback |= lm.bad
+            for k in range(lm.incompatible.shape[1]):
+                row = np.zeros((b, n))
+                row[:, sl] = lm.incompatible[:, k]
+                inner.append(row)
+        else:
+            jac = sols.jacobians[i][idx]
+            n_reg = 6 * limb.nq
+            reg = np.empty((b, 6, n_reg))
+            for pos, k in enumerate(idx):
+                pin.forwardKinematics(model, data, sols.q[k, cols_q])
+                reg[pos] = pin.computeFrameKinematicRegressor(model, data, fid, pin.LOCAL)
+            sel = pset.selections[i]
+            local = reg @ sel[:n_reg] + sel[n_reg : n_reg + 6] + jac @ sel[n_reg + 6 :]
+            t_i = _to_k_prime(rot, jac)
+            e_i = _to_k_prime(rot, local)
         cols[:, :, sl] = e_i
         twists.append(t_i)
         pinv, basis, bad = _twist_split(t_i)
@@ -301,9 +346,9 @@ def _stacked(
             row = np.zeros((b, n))
             row[:, sl] = np.einsum("bj,bjm->bm", basis[:, :, k], e_i)
             yc_rows.append(row)
-        for a in limb.actuated:
+        for a in acts:
             w = pinv[:, a, :]  # row a of T_i⁺: reciprocal to the passive joints, w · t_a = 1
-            passive = [j for j in range(limb.nq) if j != a]
+            passive = [j for j in range(t_i.shape[2]) if j != a]
             dots = np.einsum("bj,bjk->bk", w, t_i)
             recip = np.abs(dots[:, a] - 1.0)
             if passive:
@@ -356,10 +401,13 @@ def _stacked(
     twist_map = w_inv_t @ y
     unc = w_inv_t[:, :, f:] @ y_c
     incompatible = y - np.swapaxes(W, 1, 2) @ twist_map
+    if inner:
+        incompatible = np.concatenate([incompatible, np.stack(inner, axis=1)], axis=1)
     lever = rot @ mechanism.reference_point_m
     to_p = np.zeros((b, 3, 6))
     to_p[:, :, :3] = np.eye(3)
     to_p[:, :, 3:] = -_skew_rows(lever)
+    to_p = mechanism.task_projection @ to_p  # a planar task: the in-plane part of P's error
     lam_arr = np.stack(lam, axis=1) if f else np.zeros((b, 0))
     correction = -(y_a / lam_arr[:, :, None]) if f else np.zeros((b, 0, n))
     J, J_total = to_p @ unc, to_p @ twist_map
@@ -391,7 +439,7 @@ def _stacked(
                     "lever_m": lever[pos],
                     "J": J[pos],
                     "J_total": J_total[pos],
-                    "redundancy": f + c - 6,
+                    "redundancy": f + c - 6 + len(inner),
                     "incompatible_map": incompatible[pos],
                     "actuation_map": actuation[pos],
                 }

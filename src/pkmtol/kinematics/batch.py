@@ -45,7 +45,15 @@ from pkmtol.kinematics.closed_chain import (
     ClosedChain,
     Pose,
 )
+from pkmtol.kinematics.loops import loop_rows_many
+from pkmtol.kinematics.stacked_solve import condition_bound, exact_condition, newton_steps
 from pkmtol.model.mechanism import Mechanism
+
+#: A limb's perturbation in a batch: per problem its model, then ``exp6(ε)`` (B, 4, 4) of the
+#: platform attachment and of each loop's frame b (None where no problem perturbs it).
+_Perturbed = tuple[list[pin.Model], np.ndarray | None, list[np.ndarray | None]]
+#: A loop's frames over a batch: ``(oMa, oMb, J_a, J_b)``, (b, 4, 4) and (b, 6, nq) each.
+_LoopFrames = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,7 +181,7 @@ class BatchChain:
         self.actuated_idx = self.chain.actuated_idx
         self.n_joints = int(self.offsets[-1])
         self.p_ref = self.chain.p_ref
-        self._n_closure = 6 * (len(self.models) - 1)
+        self._n_closure = self.chain.n_equations  # platform closures, then internal loops
         self._skew_p = pin.skew(self.p_ref)
         self._cols = [slice(int(a), int(b)) for a, b in zip(self.offsets[:-1], self.offsets[1:], strict=True)]
         # the scratch models of each slot: a perturbed limb of slot s runs on _slots[i][s]
@@ -260,23 +268,21 @@ class BatchChain:
 
     # --- internals ------------------------------------------------------------------------
 
-    def _perturb(
-        self, eps: Sequence[np.ndarray], count: int
-    ) -> list[tuple[list[pin.Model], np.ndarray | None]]:
-        """Per limb: the model of each problem (a scratch slot model when perturbed) and ``exp6(ε_e)``.
+    def _perturb(self, eps: Sequence[np.ndarray], count: int) -> list[_Perturbed]:
+        """Per limb: each problem's model (a scratch slot model when perturbed) and placement errors.
 
-        Returns, per limb, ``(models, attach)`` with ``attach`` of shape (B, 4, 4) (None when no
-        problem perturbs the attachment).
+        Returns, per limb, ``(models, attach, loops)``: ``attach`` is ``exp6(ε_e)`` of shape (B, 4, 4)
+        (None when no problem perturbs the attachment), ``loops`` the same per loop's frame b.
         """
         out = []
         for i, (limb, e) in enumerate(zip(self.mechanism.limbs, eps, strict=True)):
-            e = np.asarray(e, dtype=float).reshape(count, limb.nq + 1, 6)
+            e = np.asarray(e, dtype=float).reshape(count, limb.n_origins, 6)
             nominal = self.models[i]
             slots = self._slots[i]
             while len(slots) < count:
                 slots.append(nominal.copy())
             models = []
-            joints_hit = np.asarray(e[:, :-1].any(axis=(1, 2)), dtype=bool)
+            joints_hit = np.asarray(e[:, : limb.nq].any(axis=(1, 2)), dtype=bool)
             for s in range(count):
                 if not joints_hit[s]:
                     models.append(nominal)
@@ -285,47 +291,68 @@ class BatchChain:
                 for j in range(1, nominal.njoints):
                     m.jointPlacements[j] = nominal.jointPlacements[j] * pin.exp6(e[s, j - 1])
                 models.append(m)
-            attach = None
-            if e[:, -1].any():
-                attach = np.array([pin.exp6(e[s, -1]).homogeneous for s in range(count)])
-            out.append((models, attach))
+            deltas: list[np.ndarray | None] = []
+            for k in range(limb.nq, limb.n_origins):  # the attachment, then each loop's frame b
+                hit = e[:, k].any()
+                deltas.append(
+                    np.array([pin.exp6(e[s, k]).homogeneous for s in range(count)]) if hit else None
+                )
+            out.append((models, deltas[0], deltas[1:]))
         return out
 
     def _evaluate(
-        self,
-        q: np.ndarray,
-        idx: np.ndarray,
-        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
-    ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Per limb, platform placements (b, 4, 4) and local Jacobians (b, 6, nq_i) of problems ``idx``."""
-        placements, jacobians = [], []
-        for i, (model, data, fid, cols) in enumerate(
-            zip(self.models, self.datas, self.fids, self._cols, strict=True)
+        self, q: np.ndarray, idx: np.ndarray, perturbation: list[_Perturbed] | None
+    ) -> tuple[list[np.ndarray], list[np.ndarray], list[list[_LoopFrames]]]:
+        """Per limb, platform placements (b, 4, 4), local Jacobians (b, 6, nq_i) and loop frames.
+
+        The loop frames of a limb are, per loop, ``(oMa, oMb, J_a, J_b)`` stacked over problems ``idx``.
+        """
+        placements, jacobians, loop_frames = [], [], []
+        for i, (model, data, fid, cols, limb) in enumerate(
+            zip(self.models, self.datas, self.fids, self._cols, self.mechanism.limbs, strict=True)
         ):
             models = perturbation[i][0] if perturbation is not None else None
             hs, js = [], []
+            lf: list[list[np.ndarray]] = [[] for _ in range(4 * len(limb.loops))]
             for k in idx:
                 m = model if models is None else models[k]
                 pin.computeJointJacobians(m, data, q[k, cols])
                 hs.append(pin.updateFramePlacement(m, data, fid).homogeneous)
                 js.append(pin.getFrameJacobian(m, data, fid, pin.LOCAL))
+                for n, lp in enumerate(limb.loops):
+                    for side, f in enumerate((lp.frame_a, lp.frame_b)):
+                        lf[4 * n + side].append(pin.updateFramePlacement(m, data, f).homogeneous)
+                        lf[4 * n + 2 + side].append(pin.getFrameJacobian(m, data, f, pin.LOCAL))
             h, jac = np.array(hs), np.array(js)
             attach = perturbation[i][1] if perturbation is not None else None
             if attach is not None:
-                d = attach[idx]
-                h = h @ d
-                jac = se3_batch.act_inverse(d[:, :3, :3], d[:, :3, 3], jac)
+                h, jac = _moved(h, jac, attach[idx])
             placements.append(h)
             jacobians.append(jac)
-        return placements, jacobians
+            frames = []
+            for n, lp in enumerate(limb.loops):
+                ha, hb, ja, jb = (np.array(x) for x in lf[4 * n : 4 * n + 4])
+                delta = perturbation[i][2][n] if perturbation is not None else None
+                if delta is not None:
+                    hb, jb = _moved(hb, jb, delta[idx])
+                if attach is not None and lp.frame_a in limb.attach_frames:
+                    ha, ja = _moved(ha, ja, attach[idx])
+                frames.append((ha, hb, ja, jb))
+            loop_frames.append(frames)
+        return placements, jacobians, loop_frames
 
     def _system(
-        self, placements: list[np.ndarray], jacobians: list[np.ndarray], targets: np.ndarray | None
+        self,
+        placements: list[np.ndarray],
+        jacobians: list[np.ndarray],
+        loop_frames: list[list[_LoopFrames]],
+        targets: np.ndarray | None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals (b, rows), Jacobians (b, rows, N) and a near-half-turn mask (b,).
 
         The closure rows of every limb pair are computed together: ``e_i = oMp_0⁻¹ oMp_i``,
-        ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``.
+        ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``;
+        then each internal loop's rows (:func:`pkmtol.kinematics.loops.loop_rows_many`).
         """
         b = len(placements[0])
         n = self._n_closure
@@ -342,16 +369,20 @@ class BatchChain:
             re = (r0t[None] @ h[1:, :, :3, :3]).reshape(-1, 3, 3)  # (pairs·b, 3, 3)
             pe = (r0t[None] @ (h[1:, :, :3, 3] - p0[None])[..., None]).reshape(-1, 3)
             nu, jl, near = se3_batch.log6_and_jacobian(re, pe)
-            res[:, :n] = nu.reshape(pairs, b, 6).transpose(1, 0, 2).reshape(b, n)
+            n6 = 6 * pairs
+            res[:, :n6] = nu.reshape(pairs, b, 6).transpose(1, 0, 2).reshape(b, n6)
             j0_all = np.broadcast_to(j0, (pairs,) + j0.shape).reshape(-1, 6, j0.shape[2])
             d0 = -(jl @ se3_batch.act_inverse(re, pe, j0_all))
-            jac[:, :n, c0] = d0.reshape(pairs, b, 6, -1).transpose(1, 0, 2, 3).reshape(b, n, -1)
+            jac[:, :n6, c0] = d0.reshape(pairs, b, 6, -1).transpose(1, 0, 2, 3).reshape(b, n6, -1)
             jl = jl.reshape(pairs, b, 6, 6)
             for i in range(1, pairs + 1):
                 jac[:, 6 * (i - 1) : 6 * i, self._cols[i]] = jl[i - 1] @ jacobians[i]
             near_pi = np.asarray(near.reshape(pairs, b).any(axis=0), dtype=bool)
         else:
             near_pi = np.zeros(b, dtype=bool)
+        for blocks, frames, cols in zip(self.chain.loop_blocks, loop_frames, self._cols, strict=True):
+            for (lp, lrows), (ha, hb, ja, jb) in zip(blocks, frames, strict=True):
+                res[:, lrows], jac[:, lrows, cols] = loop_rows_many(lp, ha, hb, ja, jb)
         if targets is not None:
             res[:, n:] = (r0 @ self.p_ref) + p0 - targets
             jac[:, n:, c0] = r0 @ (j0[:, :3] - self._skew_p @ j0[:, 3:])
@@ -381,7 +412,7 @@ class BatchChain:
         q0: np.ndarray,
         free: np.ndarray,
         targets: np.ndarray | None,
-        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
+        perturbation: list[_Perturbed] | None,
         what: str,
     ) -> Solutions:
         """Lockstep Newton on the free joints of every problem (``ClosedChain._newton``'s rules)."""
@@ -398,9 +429,9 @@ class BatchChain:
         active = np.arange(count)
         converged_any: list[np.ndarray] = []
         for _ in range(MAX_ITERATIONS if count else 0):
-            placements, jacobians = self._evaluate(q, active, perturbation)
+            placements, jacobians, loop_frames = self._evaluate(q, active, perturbation)
             res, jac, near_pi = self._system(
-                placements, jacobians, None if targets is None else targets[active]
+                placements, jacobians, loop_frames, None if targets is None else targets[active]
             )
             for k in np.flatnonzero(near_pi):
                 self._pinocchio_rows(placements, jacobians, int(k), res, jac)
@@ -419,7 +450,7 @@ class BatchChain:
             active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
             if not active.size:
                 break
-            step = _solve(a, res)
+            step = newton_steps(a, res)
             big = np.abs(step).max(axis=1)
             scale = np.where(big > 0.5, 0.5 / np.where(big > 0.5, big, 1.0), 1.0)
             step *= scale[:, None]
@@ -435,12 +466,12 @@ class BatchChain:
         condition = np.full(count, np.nan)
         inverse = np.full((count, n_free, rows), np.nan)
         if solved.size:
-            cond, inv = _condition_bound(system[solved])
+            cond, inv = condition_bound(system[solved])
             condition[solved] = cond
             inverse[solved] = inv
             for pos, k in enumerate(solved):
                 if rows < n_free or cond[pos] > SINGULAR_CONDITION:
-                    exact = _exact_condition(system[k])
+                    exact = exact_condition(system[k])
                     condition[k] = exact
                     if rows < n_free or exact > SINGULAR_CONDITION:
                         errors[int(k)] = SingularPoseError(_what(what, int(k), targets), exact)
@@ -464,10 +495,8 @@ class BatchChain:
             task=targets is not None,
         )
 
-    def _placement0(
-        self, q: np.ndarray, perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None, k: int
-    ) -> np.ndarray:
-        placements, _ = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
+    def _placement0(self, q: np.ndarray, perturbation: list[_Perturbed] | None, k: int) -> np.ndarray:
+        placements, _, _ = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
         return placements[0][0]
 
     def _failure(
@@ -475,7 +504,7 @@ class BatchChain:
         q: np.ndarray,
         free: np.ndarray,
         target: np.ndarray | None,
-        perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None,
+        perturbation: list[_Perturbed] | None,
         k: int,
         norm: float,
         what: str,
@@ -485,10 +514,10 @@ class BatchChain:
         ``norm`` is the residual of the last iterate checked; the condition is that of the
         Jacobian after the last step, as in the per-pose solver.
         """
-        placements, jacobians = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
-        res, jac, _ = self._system(placements, jacobians, None if target is None else target[None])
+        placements, jacobians, frames = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
+        res, jac, _ = self._system(placements, jacobians, frames, None if target is None else target[None])
         self._pinocchio_rows(placements, jacobians, 0, res, jac)
-        cond = _exact_condition(jac[0][:, free])
+        cond = exact_condition(jac[0][:, free])
         label = what if target is not None else f"{what} (problem {k})"
         if cond > SINGULAR_CONDITION and norm < SINGULAR_RESIDUAL:
             return SingularPoseError(f"the {label} Jacobian", cond)
@@ -500,67 +529,20 @@ def _what(what: str, k: int, targets: np.ndarray | None) -> str:
     return f"the {what} Jacobian" if targets is not None else f"the {what} Jacobian (problem {k})"
 
 
-def _one(
-    perturbation: list[tuple[list[pin.Model], np.ndarray | None]] | None, k: int
-) -> list[tuple[list[pin.Model], np.ndarray | None]] | None:
+def _one(perturbation: list[_Perturbed] | None, k: int) -> list[_Perturbed] | None:
     """The perturbation of problem ``k`` alone (as problem 0)."""
     if perturbation is None:
         return None
-    return [([models[k]], None if attach is None else attach[k : k + 1]) for models, attach in perturbation]
+    return [
+        (
+            [models[k]],
+            None if attach is None else attach[k : k + 1],
+            [None if d is None else d[k : k + 1] for d in loops],
+        )
+        for models, attach, loops in perturbation
+    ]
 
 
-def _solve(a: np.ndarray, res: np.ndarray) -> np.ndarray:
-    """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise."""
-    if a.shape[1] == a.shape[2]:
-        try:
-            return np.linalg.solve(a, res[:, :, None])[:, :, 0]
-        except np.linalg.LinAlgError:
-            return np.array([_solve_one(ak, rk) for ak, rk in zip(a, res, strict=True)])
-    if a.shape[1] > a.shape[2]:
-        qm, r = np.linalg.qr(a)
-        rhs = np.swapaxes(qm, 1, 2) @ res[:, :, None]
-        try:
-            return np.linalg.solve(r, rhs)[:, :, 0]
-        except np.linalg.LinAlgError:
-            pass
-    return np.array([np.linalg.lstsq(ak, rk, rcond=None)[0] for ak, rk in zip(a, res, strict=True)])
-
-
-def _solve_one(a: np.ndarray, r: np.ndarray) -> np.ndarray:
-    try:
-        return np.linalg.solve(a, r)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(a, r, rcond=None)[0]
-
-
-def _condition_bound(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``κ_F`` (b,) and the inverse (or pseudo-inverse) (b, free, rows) of stacked Jacobians."""
-    rows, cols = a.shape[1:]
-    if rows == cols:
-        try:
-            inv = np.linalg.inv(a)
-        except np.linalg.LinAlgError:
-            inv = np.array([_inv_or_nan(ak) for ak in a])
-        bound = np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(inv, axis=(1, 2))
-        return np.where(np.isfinite(bound), bound, np.inf), inv
-    if rows > cols:
-        g = np.swapaxes(a, 1, 2) @ a
-        try:
-            g_inv = np.linalg.inv(g)
-        except np.linalg.LinAlgError:
-            g_inv = np.array([_inv_or_nan(gk) for gk in g])
-        bound = np.sqrt(np.linalg.norm(g, axis=(1, 2)) * np.linalg.norm(g_inv, axis=(1, 2)))
-        return np.where(np.isfinite(bound), bound, np.inf), g_inv @ np.swapaxes(a, 1, 2)
-    return np.full(len(a), np.inf), np.full((len(a), cols, rows), np.nan)
-
-
-def _inv_or_nan(a: np.ndarray) -> np.ndarray:
-    try:
-        return np.linalg.inv(a)
-    except np.linalg.LinAlgError:
-        return np.full(a.shape[::-1], np.nan)
-
-
-def _exact_condition(a: np.ndarray) -> float:
-    s = np.linalg.svd(a, compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+def _moved(h: np.ndarray, jac: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frames ``h`` (b, 4, 4) and their LOCAL Jacobians (b, 6, k) moved by ``delta`` (b, 4, 4), local."""
+    return h @ delta, se3_batch.act_inverse(delta[:, :3, :3], delta[:, :3, 3], jac)

@@ -22,6 +22,8 @@ from tqdm import tqdm
 
 from pkmtol.exceptions import InvalidArgumentError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.loops import frame_placements, loop_rows
+from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import Mechanism
 
 #: Singular values below this fraction of the largest count as zero in rank decisions.
@@ -60,8 +62,8 @@ class LimbReport:
         name: Limb name.
         urdf_path: Source URDF (None for a limb built from a ``pin.Model``).
         joints: The joints, base to platform.
-        twist_rank: Rank of the limb's joint twists (its platform-frame Jacobian, shape (6, nq))
-            at home.
+        twist_rank: Rank of the limb's joint twists (its platform-frame Jacobian, shape (6, nq);
+            for a limb with internal loops, the motions that keep them closed) at home.
         constraint_count: Number of independent constraint wrenches, ``6 - twist_rank``.
 
     """
@@ -210,13 +212,27 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
             )
             for j, (name, kind) in enumerate(zip(limb.joint_names, limb.joint_kinds, strict=True))
         )
-        q_limb = home_q[k0 : k0 + limb.nq]
-        twists = pin.computeFrameJacobian(
-            limb.model, limb.model.createData(), q_limb, limb.platform_frame, pin.LOCAL
-        )
-        rank = _rank(twists)
+        rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
         limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
     return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, tuple(points))
+
+
+def limb_twists(limb: Limb, q: np.ndarray) -> np.ndarray:
+    """The platform motions of a limb at ``q`` (nq,): its LOCAL frame Jacobian, shape (6, nq).
+
+    For a limb with internal loops, the motions that keep its loops closed: ``J_P Z`` with ``Z`` an
+    orthonormal basis of the null space of the loops' Jacobian (6, nq − rank).
+    """
+    model, data = limb.model, limb.model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacement(model, data, limb.platform_frame)
+    jp = pin.getFrameJacobian(model, data, limb.platform_frame, pin.LOCAL)
+    if not limb.loops:
+        return np.array(jp)
+    c = np.vstack([loop_rows(lp, *frame_placements(model, data, lp))[1] for lp in limb.loops])
+    _, s, vt = np.linalg.svd(c)
+    rank = int(np.sum(s > RANK_TOLERANCE * s[0])) if s.size and s[0] > 0 else 0
+    return np.array(jp @ vt[rank:].T)
 
 
 def _solve_point(

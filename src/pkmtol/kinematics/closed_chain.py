@@ -1,7 +1,9 @@
 """Closed-chain kinematics on Pinocchio: inverse (task → all joints) and forward (actuators → pose).
 
 Unknowns are the joint values of every limb. Closure equations make every limb's platform frame
-coincide with limb 0's: ``r_i = log6(oMp_0⁻¹ · oMp_i) = 0`` (6 each, in limb 0's platform frame).
+coincide with limb 0's: ``r_i = log6(oMp_0⁻¹ · oMp_i) = 0`` (6 each, in limb 0's platform frame),
+and close every internal loop of a limb (:mod:`pkmtol.kinematics.loops`: 6 rows for a ``6d`` loop,
+3 for a ``3d`` one), in limb order after the platform closures.
 The inverse problem adds the task ``oMp_0 · P − target = 0`` (3, in K) and frees every joint; the
 forward problem frees only the passive joints. Newton's method with the exact Jacobian
 (``Jlog6`` and Pinocchio's frame Jacobians) converges quadratically; over-determined systems
@@ -9,7 +11,8 @@ forward problem frees only the passive joints. Newton's method with the exact Ja
 
 Geometric errors enter through :func:`perturbed_limb_models`: joint placements
 ``jointPlacements[j] · exp6(ε_j)``, the platform attachment ``placement · exp6(ε_e)`` and joint
-zero offsets ``q_actual = q + δq`` (DESIGN.md, "Geometric error parameters").
+zero offsets ``q_actual = q + δq`` (DESIGN.md, "Geometric error parameters"), and each internal loop's frame b
+placement ``· exp6(ε_loop)``.
 """
 
 from __future__ import annotations
@@ -24,10 +27,12 @@ import pkmtol.values as values
 from pkmtol.exceptions import (
     ConvergenceError,
     JointLimitError,
+    LoopMismatchError,
     PlatformMismatchError,
     SingularPoseError,
     UnreachableTargetError,
 )
+from pkmtol.kinematics.loops import frame_placements, loop_gaps, loop_layout, loop_rows
 from pkmtol.model.mechanism import Mechanism
 
 #: Closure/task residual at which Newton stops [m, rad].
@@ -97,7 +102,9 @@ class ClosedChain:
         )
         self.lower = np.concatenate([m.lowerPositionLimit for m in self.models])
         self.upper = np.concatenate([m.upperPositionLimit for m in self.models])
-        n_rows = 6 * (len(self.models) - 1)
+        # per limb: (loop, its rows) for each internal loop, after the platform closures
+        self.loop_blocks, n_rows = loop_layout(mechanism.limbs, 6 * (len(self.models) - 1))
+        self.n_equations = n_rows
         self._jac = np.zeros((n_rows + 3, int(self.offsets[-1])))
         # per limb: model, data, platform frame, its columns in q, its closure rows (limb 0: none)
         self._blocks = [
@@ -124,15 +131,23 @@ class ClosedChain:
         try:
             q, _, _ = self._newton(q0, free, None, "home closure")
         except SingularPoseError as err:
-            worst = self.worst_limb(q0)
-            if max(worst[2], worst[3]) > 1e-9:
-                raise PlatformMismatchError(*worst) from err
+            mismatch = self._home_mismatch(q0)
+            if max(mismatch.distance_m, mismatch.angle_rad) > 1e-9:
+                raise mismatch from err
             raise SingularPoseError(
                 "the closure Jacobian at the home configuration (actuators held)", err.condition
             ) from err
         except ConvergenceError as err:
-            raise PlatformMismatchError(*self.worst_limb(q0)) from err
+            raise self._home_mismatch(q0) from err
         return q
+
+    def _home_mismatch(self, q0: np.ndarray) -> PlatformMismatchError:
+        """The largest gap at ``q0``: a limb's platform frame, or an internal loop."""
+        worst = self.worst_limb(q0)
+        loops = self.worst_loop(q0)
+        if loops is not None and max(loops[3], loops[4]) > max(worst[2], worst[3]):
+            return LoopMismatchError(*loops)
+        return PlatformMismatchError(*worst)
 
     def inverse(self, target_m: np.ndarray, q0: np.ndarray | None = None) -> Pose:
         """All joint values and the platform pose that put P at ``target_m``.
@@ -233,10 +248,13 @@ class ClosedChain:
         """
         jac, res = self._jac, self._res
         placements, jacs = [], []
-        for m, d, fid, cols, _ in self._blocks:
+        for (m, d, fid, cols, _), loops in zip(self._blocks, self.loop_blocks, strict=True):
             pin.computeJointJacobians(m, d, q[cols])  # and the joint placements oMi
             placements.append(pin.updateFramePlacement(m, d, fid))
             jacs.append(pin.getFrameJacobian(m, d, fid, pin.LOCAL))
+            for lp, rows in loops:
+                oma, omb, ja, jb = frame_placements(m, d, lp)
+                res[rows], jac[rows, cols], _ = loop_rows(lp, oma, omb, ja, jb)
         m0 = placements[0]
         j0 = jacs[0]
         c0 = self._blocks[0][3]
@@ -246,7 +264,7 @@ class ClosedChain:
             jl = pin.Jlog6(e)
             jac[rows, cols] = jl @ ji
             jac[rows, c0] = -(jl @ e.toActionMatrixInverse()) @ j0
-        n = 6 * (len(self.models) - 1)
+        n = self.n_equations
         if target is None:
             return res[:n], jac[:n]
         p = m0.act(self.p_ref)
@@ -324,6 +342,19 @@ class ClosedChain:
             float(self.lower[k]),
             float(self.upper[k]),
         )
+
+    def worst_loop(self, q: np.ndarray) -> tuple[str, str, tuple[str, str], float, float] | None:
+        """The internal loop with the largest gap at ``q`` (Σ nq,), None without loops.
+
+        Returns:
+            ``(limb, loop, (frame a, frame b), translation gap [m], rotation gap [rad])``.
+        """
+        worst: tuple[str, str, tuple[str, str], float, float] | None = None
+        for i, (limb, m) in enumerate(zip(self.mechanism.limbs, self.models, strict=True)):
+            for lp, dist, ang in loop_gaps(limb, m, q[self.offsets[i] : self.offsets[i + 1]]):
+                if worst is None or dist + ang > worst[3] + worst[4]:
+                    worst = (limb.name, lp.name, lp.frame_names, dist, ang)
+        return worst
 
     def worst_limb(self, q: np.ndarray) -> tuple[str, str, float, float]:
         """The limb whose platform frame is furthest from limb 0's at ``q`` (Σ nq,).

@@ -1,7 +1,8 @@
-"""Perturbed limb models: joint-placement and platform-attachment errors applied to copies of the limbs.
+"""Perturbed limb models: joint-placement, platform-attachment and loop errors applied to copies of the limbs.
 
 Geometric errors enter as ``jointPlacements[j] · exp6(ε_j)``, the platform attachment
-``placement · exp6(ε_e)`` and joint zero offsets ``q_actual = q + δq`` (the offsets are applied by
+``placement · exp6(ε_e)``, each internal loop's frame b ``placement · exp6(ε_loop)`` and joint zero
+offsets ``q_actual = q + δq`` (the offsets are applied by
 :meth:`pkmtol.kinematics.closed_chain.ClosedChain.forward`; DESIGN.md, "Geometric error parameters").
 """
 
@@ -22,11 +23,13 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
 
     Args:
         mechanism: The nominal mechanism.
-        eps: Per limb, shape (nq_i + 1, 6): ``ε`` of each joint origin then of the platform
-            attachment, each ``(dx, dy, dz, rx, ry, rz)`` in that origin's frame [m, rad].
+        eps: Per limb, shape (nq_i + 1 + loops_i, 6) (``Limb.n_origins`` rows): ``ε`` of each
+            joint origin, of the platform attachment, then of each loop's frame b, each
+            ``(dx, dy, dz, rx, ry, rz)`` in that origin's frame [m, rad].
 
     Returns:
-        Models with ``jointPlacements[j] · exp6(ε_j)`` and platform frame ``placement · exp6(ε_e)``.
+        Models with ``jointPlacements[j] · exp6(ε_j)``, platform frame ``placement · exp6(ε_e)``
+        and loop frames ``placement · exp6(ε_loop)``.
     """
     values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
     if isinstance(eps, str) or len(eps) != len(mechanism.limbs):
@@ -40,13 +43,14 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
         m = limb.model.copy()
         for j in range(1, m.njoints):
             m.jointPlacements[j] = limb.model.jointPlacements[j] * pin.exp6(e[j - 1])
-        delta = pin.exp6(e[-1])
-        ids = {limb.platform_frame}
-        if m.existFrame(limb.attach_name):
-            ids.add(m.getFrameId(limb.attach_name))
-        for fid in ids:
+        delta = pin.exp6(e[limb.nq])
+        for fid in limb.attach_frames:
             fr = m.frames[fid]
             fr.placement = limb.model.frames[fid].placement * delta
             m.frames[fid] = fr
+        for k, lp in enumerate(limb.loops):
+            fr = m.frames[lp.frame_b]
+            fr.placement = limb.model.frames[lp.frame_b].placement * pin.exp6(e[limb.nq + 1 + k])
+            m.frames[lp.frame_b] = fr
         out.append(m)
     return out

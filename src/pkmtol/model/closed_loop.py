@@ -53,7 +53,8 @@ from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader
 from pkmtol.model.sidecar import Sidecar, default_sidecar, read_sidecar
 from pkmtol.model.taskspace import TaskSpace
-from pkmtol.model.tree_cut import MOTOR_MARK, TreeCut, cut_limbs, cut_tree, load_tree
+from pkmtol.model.tree_cut import MOTOR_MARK, TreeCut, cut_tree, load_tree
+from pkmtol.model.tree_limbs import cut_limbs
 
 
 def closed_loop_limbs(

@@ -1,4 +1,4 @@
-"""The mechanism for Pinocchio 4's constraint API: one ``pin.Model`` of all limbs, a frame anchor per loop.
+"""The mechanism for Pinocchio 4's constraint API: one ``pin.Model`` of all limbs, an anchor per loop.
 
 pkmtol keeps a mechanism as serial limbs that all end in the platform frame O'. Pinocchio 4's
 constrained dynamics and solvers (``constraintDynamics``, the ADMM solver, ``getConstraintsJacobian``)
@@ -14,7 +14,11 @@ builds it from the limbs as they are (nominal, or perturbed by
 * one ``FrameAnchorConstraintModel`` per limb after the first: ``joint1`` is that limb's last joint
   with its platform frame's placement, ``joint2`` the reference limb's last joint with its platform
   frame's placement. The loop is closed when the two frames coincide; Pinocchio's residual is
-  ``log6(oMc1⁻¹ · oMc2)`` (6, ``[v; ω]`` in frame c1).
+  ``log6(oMc1⁻¹ · oMc2)`` (6, ``[v; ω]`` in frame c1);
+* then one constraint per internal loop of a limb (limb order, ``name`` ``<limb>.<loop>``): a
+  ``FrameAnchorConstraintModel`` (``6d``) or a ``PointAnchorConstraintModel`` (``3d``, residual
+  ``R_a⁻¹ (p_b − p_a)``, 3 in frame a) with ``joint1`` frame a's joint and placement, ``joint2``
+  frame b's.
 
 The platform's own inertia is counted once: limb URDFs each carry the platform link (Pinocchio adds
 its inertia to the last joint), so a loop limb's last body gives back the inertia of the platform
@@ -55,7 +59,8 @@ class ConstrainedModel:
     Attributes:
         model: All limbs' joints under one root (frame K), limb after limb; ``nq == nv``.
         constraints: One ``pin.FrameAnchorConstraintModel`` per limb after the first (see the
-            module docstring for ``joint1`` / ``joint2``); ``name`` is the limb's name.
+            module docstring for ``joint1`` / ``joint2``; ``name`` is the limb's name), then one
+            frame or point anchor per internal loop of a limb (``name`` ``<limb>.<loop>``).
         limb_names: The limbs, reference limb first.
         q_slices: Per limb, its entries in ``q`` (and ``v``).
         actuated: Indices into ``q`` (and ``v``) of the actuated joints, limb order.
@@ -97,7 +102,7 @@ class ConstrainedModel:
         return out
 
     def rigid_constraints(self) -> list[Any]:
-        """The constraints as legacy ``pin.RigidConstraintModel`` (6D, LOCAL), for ``constraintDynamics``.
+        """The constraints as legacy ``pin.RigidConstraintModel`` (6D or 3D), for ``constraintDynamics``.
 
         Converted by ``pin.convertToRigidConstraintModel``. Their Jacobian is minus the
         ``FrameAnchorConstraintModel``'s, and ``pin.getConstraintsJacobian`` gives it only after each
@@ -106,9 +111,10 @@ class ConstrainedModel:
         return [pin.convertToRigidConstraintModel(self.model, c) for c in self.constraints]
 
     def residuals(self, q: np.ndarray, data: Any = None) -> np.ndarray:
-        """Pinocchio's constraint residuals at ``q`` (each loop's ``constraint_position_error``), (6·(L−1),).
+        """Pinocchio's constraint residuals at ``q`` (each loop's ``constraint_position_error``).
 
-        Each block is ``log6(oMc1⁻¹ · oMc2)`` [m, rad] (``calc`` after ``forwardKinematics``).
+        Shape (6·(L−1) + Σ loop rows,): a frame anchor's block is ``log6(oMc1⁻¹ · oMc2)`` [m, rad],
+        a point anchor's ``R_1⁻¹ (p_2 − p_1)`` [m] (``calc`` after ``forwardKinematics``).
         """
         data = self.model.createData() if data is None else data
         pin.forwardKinematics(self.model, data, np.asarray(q, dtype=float))
@@ -120,7 +126,7 @@ class ConstrainedModel:
         return np.concatenate(out) if out else np.zeros(0)
 
     def jacobian(self, q: np.ndarray, data: Any = None) -> np.ndarray:
-        """Pinocchio's constraint Jacobian at ``q`` (``getConstraintsJacobian``), shape (6·(L−1), nv).
+        """Pinocchio's constraint Jacobian at ``q`` (``getConstraintsJacobian``), shape (rows, nv).
 
         At a closed configuration it is the derivative of :meth:`residuals`.
         """
@@ -166,6 +172,7 @@ def constraint_models(
     m.name = mechanism.name
     used: set[str] = {f.name for f in m.frames}
     last_joint, platform_frames, q_slices, actuated = [], [], [], []
+    inner: list[Any] = []  # the limbs' internal loops, after the limbs' closures on the platform
     for i, (limb, lm) in enumerate(zip(limbs, lms, strict=True)):
         jmap = {0: 0}
         start = m.nq
@@ -205,8 +212,14 @@ def constraint_models(
                 pin.Frame(name, jmap[f.parentJoint], parent, f.placement, f.type, inertia), False
             )
             used.add(name)
-        last_joint.append(jmap[lm.njoints - 1])
+        last_joint.append(jmap[lm.frames[limb.platform_frame].parentJoint])
         platform_frames.append(fmap[limb.platform_frame])
+        for lp in limb.loops:  # frame a is joint1's side, frame b joint2's: residual of a → b
+            fa, fb = lm.frames[lp.frame_a], lm.frames[lp.frame_b]
+            anchor = pin.FrameAnchorConstraintModel if lp.kind == "6d" else pin.PointAnchorConstraintModel
+            c = anchor(m, jmap[fa.parentJoint], fa.placement, jmap[fb.parentJoint], fb.placement)
+            c.name = f"{limb.name}.{lp.name}"
+            inner.append(c)
         q_slices.append(slice(start, m.nq))
         actuated += [start + a for a in limb.actuated]
     constraints = []
@@ -218,7 +231,7 @@ def constraint_models(
         constraints.append(c)
     return ConstrainedModel(
         model=m,
-        constraints=tuple(constraints),
+        constraints=tuple(constraints + inner),
         limb_names=tuple(lb.name for lb in limbs),
         q_slices=tuple(q_slices),
         actuated=tuple(actuated),

@@ -47,10 +47,11 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
         }
     ),
     "reference_point": frozenset({"position_m"}),
-    "task": frozenset({"kind"}),
+    "task": frozenset({"kind", "normal"}),
     "task_space": frozenset({"kind", "radius_m", "z_m", "layers", "rings", "center_xy_m", "points_m"}),
     "design": frozenset({"target", "beta", "design_beta", "orientation_target", "tool_axis"}),
-    "limbs[]": frozenset({"name", "urdf", "actuated", "home", "dh"}),
+    "limbs[]": frozenset({"name", "urdf", "actuated", "home", "dh", "loops"}),
+    "limbs[].loops[]": frozenset({"name", "frames", "type"}),
     "limbs[].dh": frozenset({"joint_types", "joint_names", "links", "end", "limits"}),
     "closed_loop": frozenset({"urdf", "sidecar", "platform_link", "limbs", "home"}),
     "closed_loop.home": ANY,

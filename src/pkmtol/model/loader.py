@@ -93,9 +93,27 @@ def _from_doc(
     r.get("description", str, default="")
     p_ref = r.lengths("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
-    if kind != "position":
-        r.fail("task.kind", f"unknown task kind {kind!r}; supported: 'position' (of P)")
+    if kind not in ("position", "planar"):
+        r.fail(
+            "task.kind",
+            f"unknown task kind {kind!r}; supported: 'position' (of P) and 'planar' (P in a plane, "
+            "with task.normal)",
+        )
     task_space = read_task_space(r)
+    normal = None
+    if kind == "planar":
+        normal = r.vector("task.normal", 3)
+        if not np.all(np.isfinite(normal)) or np.linalg.norm(normal) < 1e-12:
+            r.fail("task.normal", f"expected a non-zero [x, y, z] (frame K), got {normal.tolist()}")
+        n = normal / np.linalg.norm(normal)
+        heights = task_space.grid() @ n
+        if np.ptp(heights) > 1e-9:
+            r.fail(
+                "task_space",
+                f"a planar task needs a task space in one plane of normal {n.tolist()}; its points are "
+                f"{np.ptp(heights) * 1e3:.3g} mm apart along the normal (give a cylinder with z_m = "
+                "[z, z] and normal [0, 0, 1], or coplanar points)",
+            )
     target = r.get("design.target", (str, float, int), default="0.05 mm")
     if not isinstance(target, str):
         r.fail(
@@ -162,14 +180,17 @@ def _from_doc(
         if home is not None and home.ndim != 1:
             lr.fail("home", f"expected a list of numbers, one per joint, got {ld['home']!r}")
         dh = read_dh(lr) if "dh" in ld else None
+        loops = read_loops(lr) if "loops" in ld else []
         model, visual = load_urdf(lname, urdf, urdf_texts.get(lname))
-        limb = make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual)
+        limb = make_limb(lname, model, actuated, platform_link, home, urdf, dh, visual, loops)
         if dh is not None:
             check_dh_matches(limb, dh, f"python scripts/dh_to_urdf.py {folder}")
         limbs.append(limb)
     # [drawing]: the ±t convention, nominal sizes, feature lengths (docs/report.md); its keys are
     # model.drawing.TABLE_KEYS, registered in model/keys.py
-    joints = [j for limb in limbs for j in (*limb.joint_names, limb.attach_name)]
+    joints = [
+        j for limb in limbs for j in (*limb.joint_names, limb.attach_name, *(lp.name for lp in limb.loops))
+    ]
     drawing = read_drawing(r.get("drawing", dict, default={}), path, joints)
     return Mechanism.from_limbs(
         name,
@@ -188,6 +209,7 @@ def _from_doc(
             "drawing": drawing,
         },
         check_home_closure=check_home_closure,
+        task_normal=normal,
     )
 
 
@@ -253,6 +275,28 @@ def read_task_space(r: TomlReader) -> TaskSpace:
         return TaskSpace(kind="points", points_m=pts)
     r.fail("task_space.kind", f"unknown kind {kind!r}; use 'cylinder' or 'points'")
     raise AssertionError  # unreachable
+
+
+def read_loops(r: TomlReader) -> list[tuple[str, str, str, str]]:
+    """A limb's ``[[limbs.loops]]`` tables: ``(name, frame_a, frame_b, kind)`` per internal loop.
+
+    Keys: ``frames`` (two frame names of the limb's URDF that coincide when the loop is closed;
+    the second one's placement error is the loop's), ``type`` (``"6d"``, the default, or ``"3d"``:
+    only the frames' origins coincide), ``name`` (default ``loop<k>``).
+    """
+    out = []
+    for k, entry in enumerate(r.get("loops", list)):
+        if not isinstance(entry, dict):
+            r.fail(f"loops[{k}]", f"expected a table (frames, type, name), got {entry!r}")
+        lr = TomlReader(r.path, entry, prefix=f"{r.prefix}loops[{k}].")
+        frames = lr.get("frames", list)
+        if len(frames) != 2 or not all(isinstance(f, str) for f in frames):
+            lr.fail("frames", f"expected two frame names [frame_a, frame_b], got {frames!r}")
+        kind = lr.get("type", str, default="6d").lower()
+        if kind not in ("6d", "3d"):
+            lr.fail("type", f"unknown loop type {kind!r}; use '6d' (frames coincide) or '3d' (points meet)")
+        out.append((lr.get("name", str, default=f"loop{k + 1}"), frames[0], frames[1], kind))
+    return out
 
 
 def read_dh(r: TomlReader) -> DHTable:

@@ -17,7 +17,13 @@ import numpy as np
 import pinocchio as pin
 
 import pkmtol.values as values
-from pkmtol.exceptions import InvalidArgumentError, PlatformMismatchError, URDFError
+from pkmtol.exceptions import (
+    InvalidArgumentError,
+    InvalidRequestError,
+    LoopMismatchError,
+    PlatformMismatchError,
+    URDFError,
+)
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.taskspace import TaskSpace
@@ -43,6 +49,9 @@ class Mechanism:
         design_beta: The β of the design case.
         root: Folder the mechanism was loaded from (None if built in Python).
         description: Free text.
+        task_normal: For a planar task (``task.kind = "planar"``), the unit normal (3,) in K of the
+            plane P moves in: the accuracy index is the in-plane norm of P's error; None: the
+            position of P in space.
     """
 
     name: str
@@ -55,6 +64,27 @@ class Mechanism:
     root: Path | None = None
     description: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    task_normal: np.ndarray | None = None
+
+    @property
+    def task_projection(self) -> np.ndarray:
+        """Shape (3, 3): the projection of a displacement of P (in K) onto the task.
+
+        ``I`` for the position task; ``I − n nᵀ`` for a planar task of normal ``n``: the error of P
+        that counts is its in-plane part (the task's 2 coordinates, kept as a vector of K).
+        """
+        if self.task_normal is None:
+            return np.eye(3)
+        n = np.asarray(self.task_normal, dtype=float)
+        return np.eye(3) - np.outer(n, n)
+
+    def task_error(self, displacement_m: np.ndarray) -> np.ndarray:
+        """A displacement of P (..., 3) in K reduced to the task (its in-plane part for a planar task) [m]."""
+        d = np.asarray(displacement_m, dtype=float)
+        if self.task_normal is None:
+            return d
+        n = np.asarray(self.task_normal, dtype=float)
+        return d - (d @ n)[..., None] * n
 
     def __post_init__(self) -> None:
         """Check the fields (raises InvalidArgumentError naming the first wrong one)."""
@@ -186,12 +216,14 @@ class Mechanism:
         description: str = "",
         extra: dict[str, Any] | None = None,
         check_home_closure: bool = True,
+        task_normal: Sequence[float] | np.ndarray | None = None,
     ) -> Mechanism:
         """A mechanism from validated limbs, checked: one common root link, closed at ``home``.
 
         Every constructor of pkmtol (TOML, ``pin.Model`` limbs, closed-loop tree) ends here.
         ``check_home_closure=False`` leaves the ``home`` check to the caller (a design variant
-        whose dimensions moved the platform frames apart at the nominal ``home``).
+        whose dimensions moved the platform frames apart at the nominal ``home``). ``task_normal``
+        makes the task planar (see :attr:`task_normal`; normalised here).
 
         Raises:
             URDFError: the limbs start from different root links.
@@ -212,11 +244,20 @@ class Mechanism:
             root=None if root is None else Path(root),
             description=description,
             extra=dict(extra or {}),
+            task_normal=None if task_normal is None else _unit(task_normal),
         )
         check_root_links(mech)
         if check_home_closure:
             check_home(mech)
         return mech
+
+
+def _unit(v: Sequence[float] | np.ndarray) -> np.ndarray:
+    n = np.asarray(v, dtype=float).reshape(3)
+    norm = float(np.linalg.norm(n))
+    if not np.isfinite(norm) or norm < 1e-12:
+        raise InvalidRequestError(f"the normal of a planar task must be a non-zero vector, got {n.tolist()}")
+    return n / norm
 
 
 def _sequence(name: str, items: Any, kind: type, what: str) -> list[Any]:
@@ -239,7 +280,23 @@ def _per_limb(name: str, items: Any, n: int, what: str) -> list[Any]:
 
 
 def check_home(mech: Mechanism) -> None:
-    """Raise PlatformMismatchError if the platform frames do not coincide at ``home``."""
+    """Raise PlatformMismatchError if the platform frames do not coincide at ``home``.
+
+    Raises:
+        LoopMismatchError: an internal loop of a limb is open at ``home``.
+        PlatformMismatchError: a limb's platform frame is away from limb 0's.
+    """
+    for limb in mech.limbs:
+        if not limb.loops:
+            continue
+        data = limb.model.createData()
+        pin.framesForwardKinematics(limb.model, data, limb.home)
+        for lp in limb.loops:
+            oma, omb = data.oMf[lp.frame_a], data.oMf[lp.frame_b]
+            dist = float(np.linalg.norm(omb.translation - oma.translation))
+            ang = float(np.linalg.norm(pin.log3(oma.rotation.T @ omb.rotation))) if lp.kind == "6d" else 0.0
+            if dist > HOME_TOLERANCE_M or ang > HOME_TOLERANCE_RAD:
+                raise LoopMismatchError(limb.name, lp.name, lp.frame_names, dist, ang)
     ref = mech.limbs[0]
     m0 = _platform_placement(ref, ref.home)
     for limb in mech.limbs[1:]:

@@ -1,19 +1,22 @@
-"""MJCF import: a MuJoCo model whose loops are ``<weld>`` equalities, read by Pinocchio, cut into limbs.
+"""MJCF import: a MuJoCo model whose loops are ``<weld>`` (6D) or ``<connect>`` (3D) equalities, as limbs.
 
 The file (docs/closed-loop.md, "MJCF") holds one kinematic tree under one jointless base body;
 each loop is left open in the tree and closed by a ``<weld>`` between two bodies (``body1``,
-``body2``) or two sites (``site1``, ``site2``); ``<actuator>`` elements name the actuated joints.
-Pinocchio's ``buildModelAndConstraintsFromMJCF`` reads the tree and gives one
-``FrameAnchorConstraintModel`` per weld: the two joints and the placements on them that coincide
-when the loop is closed. Those placements become a closure frame pair ``<loop>_A`` / ``<loop>_B``
-of the tree (a site is its own closure frame), and the tree is cut into limbs exactly as a
-closed-loop URDF is (:func:`~pkmtol.model.tree_cut.cut_tree`): the platform is the body holding one
-side of every weld (with a single weld, ``body1``'s side), limb 1 the chain from the base to it, one
-more limb per weld, its platform attachment named after the weld (``<limb>.<weld>.dx`` ...).
+``body2``) or two sites (``site1``, ``site2``), or by a ``<connect>`` (a ball joint: only a point of
+each side coincides; two sites, or ``body1`` with its ``anchor``); ``<actuator>`` elements name the
+actuated joints. Pinocchio's ``buildModelAndConstraintsFromMJCF`` reads the tree and gives one
+``FrameAnchorConstraintModel`` per weld and one ``PointAnchorConstraintModel`` per connect: the two
+joints and the placements on them that coincide when the loop is closed. Those placements become a
+closure frame pair ``<loop>_A`` / ``<loop>_B`` of the tree (a site is its own closure frame), and the
+tree is cut into limbs exactly as a closed-loop URDF is (:func:`~pkmtol.model.tree_cut.cut_tree`):
+the platform is the body holding a side of the most welds (with a single weld, ``body1``'s side),
+limb 1 the chain from the base to it, one more limb per branch that a weld closes on the platform
+(its platform attachment named after the weld, ``<limb>.<weld>.dx`` ...), every other loop an
+internal loop of its limb (``<limb>.<loop>.dx`` ...).
 
 What pkmtol cannot take is refused before anything is cut (:mod:`~pkmtol.model.mjcf_checks`):
-``<connect>`` (a point loop: pkmtol closes each limb on the full platform pose), other equality
-kinds, tendons, multi-DOF joints, and the bodies and joints Pinocchio's reader would drop.
+other equality kinds, tendons, multi-DOF joints, and the bodies and joints Pinocchio's reader would
+drop.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pinocchio as pin
 
 from pkmtol.exceptions import LostElementError, MJCFError, UnsupportedEqualityError
@@ -45,10 +49,16 @@ from pkmtol.model.mjcf_checks import (
 from pkmtol.model.reading import TomlReader
 from pkmtol.model.sidecar import Sidecar
 from pkmtol.model.taskspace import TaskSpace
-from pkmtol.model.tree_cut import TreeCut, cut_limbs, cut_tree
+from pkmtol.model.tree_cut import TreeCut, cut_tree
+from pkmtol.model.tree_limbs import cut_limbs
 
 #: What a message about a moving joint on no limb advises for an MJCF file.
 STRAY_ADVICE = "remove them from the file"
+#: What a message about a limb that reaches the platform by a <connect> only advises.
+BALL_ADVICE = (
+    "write the ball joint at the anchor as three hinge joints in three nested bodies ending in the "
+    "limb-side body, and close the loop with <weld>"
+)
 
 
 @dataclass(frozen=True)
@@ -59,13 +69,16 @@ class MjcfLoop:
         name: The weld's name (``closedloop<k>`` when it has none).
         frame_a: Closure frame on side 1 (``body1`` / ``site1``) in :attr:`MjcfTree.model`.
         frame_b: Closure frame on side 2 (``body2`` / ``site2``).
-        constraint: Pinocchio's ``FrameAnchorConstraintModel`` of the weld (``joint1`` = side 1).
+        constraint: Pinocchio's ``FrameAnchorConstraintModel`` of the weld, or
+            ``PointAnchorConstraintModel`` of the connect (``joint1`` = side 1).
+        kind: ``"6d"`` (a ``<weld>``) or ``"3d"`` (a ``<connect>``: only the points coincide).
     """
 
     name: str
     frame_a: str
     frame_b: str
     constraint: Any
+    kind: str = "6d"
 
 
 @dataclass(frozen=True)
@@ -130,22 +143,22 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
         raise MJCFError(
             path,
             "equality",
-            "no <weld> equality: this is a serial robot, not a parallel mechanism; close each loop with "
-            "<equality><weld body1='platform' body2='...'/></equality> (or site1/site2)",
+            "no <weld> or <connect> equality: this is a serial robot, not a parallel mechanism; close each "
+            "loop with <equality><weld body1='platform' body2='...'/></equality> (or site1/site2)",
         )
     for spec in specs:  # both sides are in the model, and Pinocchio reads relpose as MuJoCo means it
         frame_of(path, model, spec, 1)
         frame_of(path, model, spec, 2)
         check_relpose(path, spec, model)
     try:
-        model, _, anchors = pin.buildModelAndConstraintsFromMJCF(str(path))
+        model, points, anchors = pin.buildModelAndConstraintsFromMJCF(str(path))
     except (RuntimeError, ValueError) as err:
         raise MJCFError(path, "equality", f"Pinocchio cannot read the equalities: {err}") from err
     try:
         visual = pin.buildGeomFromMJCF(model, str(path), pin.GeometryType.VISUAL)
     except Exception:  # noqa: BLE001 - visuals are optional (meshes may be missing)
         visual = None
-    loops = _closure_frames(path, model, specs, list(anchors))
+    loops = _closure_frames(path, model, specs, list(anchors), list(points))
     keyframes = {}
     for entry in model.referenceConfigurations:
         key, q = str(entry.key()), entry.data()
@@ -173,15 +186,15 @@ def _diagnose(path: Path, root: ET.Element) -> None:
 
 
 def _closure_frames(
-    path: Path, model: pin.Model, specs: list[WeldSpec], anchors: list[Any]
+    path: Path, model: pin.Model, specs: list[WeldSpec], anchors: list[Any], points: list[Any]
 ) -> list[MjcfLoop]:
-    """Match each weld with Pinocchio's constraint (by its two joints) and add its closure frames."""
+    """Match each weld (connect) with Pinocchio's frame (point) anchor by its joints; add closure frames."""
     loops = []
-    unused = list(anchors)
+    unused = {"6d": list(anchors), "3d": list(points)}
     for spec in specs:
         sides = (frame_of(path, model, spec, 1), frame_of(path, model, spec, 2))
         joints = tuple(int(model.frames[f].parentJoint) for f in sides)
-        match = [c for c in unused if (c.joint1_id, c.joint2_id) == joints]
+        match = [c for c in unused[spec.kind] if (c.joint1_id, c.joint2_id) == joints]
         if len(match) > 1:
             raise UnsupportedEqualityError(
                 path,
@@ -194,12 +207,13 @@ def _closure_frames(
                 path,
                 spec.name,
                 [spec.name],
-                f"weld '{spec.name}' ({spec.side1} ↔ {spec.side2}) is not among the {len(anchors)} "
-                "frame constraints Pinocchio's MJCF reader returned: it was dropped (give each weld a "
+                f"weld '{spec.name}' ({spec.side1} ↔ {spec.side2}) is not among the "
+                f"{len(unused[spec.kind])} {spec.kind} constraints Pinocchio's MJCF reader returned: it was "
+                "dropped (give each weld a "
                 "distinct name)",
             )
         c = match[0]
-        unused.remove(c)
+        unused[spec.kind].remove(c)
         names = []
         for side, (fid, placement, suffix) in enumerate(
             ((sides[0], c.joint1_placement, "A"), (sides[1], c.joint2_placement, "B")), 1
@@ -208,7 +222,12 @@ def _closure_frames(
             site = spec.site1 if side == 1 else spec.site2
             if site is not None:
                 # a site is its own closure frame: Pinocchio anchors the constraint at the site
-                if not frame.placement.isApprox(placement, 1e-12):
+                same = (
+                    frame.placement.isApprox(placement, 1e-12)
+                    if spec.kind == "6d"
+                    else np.allclose(frame.placement.translation, placement.translation, rtol=0, atol=1e-12)
+                )
+                if not same:
                     raise MJCFError(
                         path, site, f"Pinocchio anchored weld '{spec.name}' away from site '{site}'"
                     )
@@ -219,7 +238,7 @@ def _closure_frames(
                 name += "_weld"
             model.addFrame(pin.Frame(name, frame.parentJoint, fid, placement, pin.FrameType.OP_FRAME), False)
             names.append(name)
-        loops.append(MjcfLoop(spec.name, names[0], names[1], c))
+        loops.append(MjcfLoop(spec.name, names[0], names[1], c, spec.kind))
     return loops
 
 
@@ -266,7 +285,7 @@ def mjcf_limbs(
         home = tree.keyframes.get(keyframe or "home", {})
     side = Sidecar(
         loops=tuple((lp.frame_a, lp.frame_b) for lp in tree.loops),
-        types=("6d",) * len(tree.loops),
+        types=tuple(lp.kind for lp in tree.loops),
         motors=tree.actuated,
     )
     cut = cut_tree(
@@ -277,6 +296,7 @@ def mjcf_limbs(
         tree.path,
         loop_names=[lp.name for lp in tree.loops],
         stray_advice=STRAY_ADVICE,
+        ball_advice=BALL_ADVICE,
     )
     return cut_limbs(tree.model, tree.visual, cut, home, tree.path), cut
 

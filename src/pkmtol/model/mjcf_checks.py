@@ -3,7 +3,8 @@
 Pinocchio 4.1's ``buildModelAndConstraintsFromMJCF`` keeps only the first ``<body>`` under
 ``<worldbody>``, skips ``<include>`` and ``<frame>`` contents, merges the joints of one body into a
 composite joint, ignores tendons and every ``<equality>`` kind but ``connect`` and ``weld``, and
-reads a weld's explicit ``relpose`` relative to the joint frame instead of the body frame. Each
+reads a weld's explicit ``relpose`` (and a body connect's ``anchor``) relative to the joint frame
+instead of the body frame. Each
 check here turns one of those into a :class:`~pkmtol.exceptions.MJCFError` (or a subclass) that
 says what would go wrong and how to write the file instead (docs/closed-loop.md, "MJCF").
 """
@@ -22,7 +23,6 @@ from pkmtol.exceptions import (
     LostElementError,
     MJCFError,
     MultiDofJointError,
-    PointLoopError,
     TendonError,
     UnsupportedEqualityError,
 )
@@ -54,7 +54,9 @@ class WeldSpec:
         body2: ``body2`` (None: the world, or given by sites).
         site1: ``site1`` (None when given by bodies).
         site2: ``site2``.
-        relpose: Whether an explicit ``relpose`` is given (else the relative pose at ``qpos0``).
+        relpose: Whether an explicit ``relpose`` is given (else the relative pose at ``qpos0``), or,
+            for a ``<connect>`` between bodies, its ``anchor`` (read on body1's joint frame too).
+        kind: ``"6d"`` for a ``<weld>``, ``"3d"`` for a ``<connect>`` (a point loop).
     """
 
     name: str
@@ -63,6 +65,7 @@ class WeldSpec:
     site1: str | None
     site2: str | None
     relpose: bool
+    kind: str = "6d"
 
     @property
     def side1(self) -> str:
@@ -216,10 +219,9 @@ def check_tendons(path: Path, root: ET.Element) -> None:
 
 
 def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
-    """The ``<weld>`` loops of the file, in file order; every other equality is refused.
+    """The ``<weld>`` (6D) and ``<connect>`` (3D) loops of the file, in order; other equalities are refused.
 
     Raises:
-        PointLoopError: a ``<connect>`` (a point loop).
         UnsupportedEqualityError: another kind (``joint``, ``tendon``, ``distance``, ``flex`` ...), an
             inactive equality, a weld with both sites and bodies, or two welds between the same pair.
         MJCFError: a weld without ``body1`` or ``site1``.
@@ -227,22 +229,12 @@ def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
     out: list[WeldSpec] = []
     for eq in [el for block in root.findall("equality") for el in block]:
         label = eq.get("name") or f"{eq.tag} #{len(out) + 1}"
-        if eq.tag == "connect":
-            raise PointLoopError(
-                path,
-                label,
-                f"<connect> between '{eq.get('site1') or eq.get('body1')}' and "
-                f"'{eq.get('site2') or eq.get('body2') or 'world'}' closes a loop on a point (3D); pkmtol "
-                "closes each limb on the platform's full pose: write the ball joint at the anchor as three "
-                "hinge joints in three nested bodies ending in the limb-side body, and close the loop with "
-                "<weld>",
-            )
-        if eq.tag != "weld":
+        if eq.tag not in ("weld", "connect"):
             raise UnsupportedEqualityError(
                 path,
                 label,
-                f"<equality><{eq.tag}>: pkmtol turns <weld> equalities into loops (and refuses <connect>); "
-                f"a {eq.tag} constraint has no limb-wise counterpart: remove it",
+                f"<equality><{eq.tag}>: pkmtol turns <weld> (6D) and <connect> (3D) equalities into loops; a "
+                f"{eq.tag} constraint has no counterpart in a mechanism of rigid links and joints: remove it",
             )
         if eq.get("active", "true") != "true":
             raise UnsupportedEqualityError(
@@ -258,13 +250,13 @@ def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
                 "are what coincides",
             )
         if sites and (eq.get("site1") is None or eq.get("site2") is None):
-            raise MJCFError(path, label, "a weld given by sites needs both site1 and site2")
+            raise MJCFError(path, label, f"a {eq.tag} given by sites needs both site1 and site2")
         if not sites and eq.get("body1") is None:
             raise MJCFError(
-                path, label, "a weld needs body1 (and body2, the other side of the loop) or two sites"
+                path, label, f"a {eq.tag} needs body1 (and body2, the other side of the loop) or two sites"
             )
         relpose = eq.get("relpose")
-        explicit = False
+        explicit = eq.tag == "connect" and not sites  # the anchor is read on body1's joint frame
         if relpose is not None:
             try:
                 values = np.array([float(x) for x in relpose.split()])
@@ -283,6 +275,7 @@ def welds(path: Path, root: ET.Element) -> list[WeldSpec]:
                 site1=eq.get("site1"),
                 site2=eq.get("site2"),
                 relpose=explicit,
+                kind="3d" if eq.tag == "connect" else "6d",
             )
         )
     seen: dict[tuple[str, str], str] = {}
@@ -353,13 +346,15 @@ def check_relpose(path: Path, spec: WeldSpec, model: pin.Model) -> None:
             continue
         frame = model.frames[model.getFrameId(body, pin.FrameType.BODY)]
         if not frame.placement.isIdentity(1e-12):
+            what = "gives relpose" if spec.kind == "6d" else "is anchored on bodies"
             raise UnsupportedEqualityError(
                 path,
                 spec.name,
-                f"weld '{spec.name}' gives relpose, and body '{body}' does not sit at its joint's origin "
-                "(a body without a joint of its own, or a joint with pos): Pinocchio 4.1 would apply relpose "
-                "to the joint frame, not to the body; write the loop with two sites (site1, site2) that "
-                "coincide when it is closed, or leave relpose out so that the loop closes at qpos0",
+                f"{'weld' if spec.kind == '6d' else 'connect'} '{spec.name}' {what}, and body '{body}' does "
+                "not sit at its joint's origin (a body without a joint of its own, or a joint with pos): "
+                "Pinocchio 4.1 would apply it to the joint frame, not to the body; write the loop with two "
+                "sites (site1, site2) that coincide when it is closed"
+                + (", or leave relpose out so that the loop closes at qpos0" if spec.kind == "6d" else ""),
             )
 
 

@@ -1,4 +1,4 @@
-"""Cutting a closed-loop URDF tree into serial limbs: which link is the platform, which joints make each limb.
+"""Cutting a closed-loop tree into limbs: which link is the platform, which joints and loops make each limb.
 
 See :mod:`pkmtol.model.closed_loop` for the convention and the rules of the cut.
 """
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +22,7 @@ from pkmtol.exceptions import (
     UnknownMotorError,
     URDFError,
 )
-from pkmtol.model.limb import Limb, make_limb
+from pkmtol.model.limb import frame_id
 from pkmtol.model.reading import build_model, build_visuals, read_text
 from pkmtol.model.sidecar import Sidecar
 
@@ -34,19 +34,25 @@ MOTOR_MARK = "mot"
 
 @dataclass(frozen=True)
 class LimbCut:
-    """One serial limb cut out of the tree.
+    """One limb cut out of the tree: a serial chain, or a tree closed by internal loops.
 
     Attributes:
         name: Limb name.
-        joints: Joint names from the root to the limb's end, in q order.
-        loop: Loop number k (1-based, sidecar order) this limb closes; 0 for the reference limb.
+        joints: The limb's joints, in the tree's order (q order).
+        loop: Loop number k (1-based, sidecar order) that closes this limb on the platform; 0 for
+            the reference limb (the platform hangs on it).
         limb_frame: Frame at the limb's end: the limb-side closure frame (B), or the platform
             link for the reference limb.
-        platform_side_frame: The loop's frame on the platform (A); None for the reference limb.
+        platform_side_frame: The closing loop's frame on the platform (A); None for the reference limb.
         attach_name: Name of the limb's platform-attachment error origin (the loop name
             ``closedloop<k>`` for a loop limb; the URDF joint that attaches the platform link,
             or ``<platform>_attach``, for the reference limb).
         actuated: Motor joints of this limb (at most one).
+        loops: The limb's internal loops ``(name, frame_a, frame_b, kind)``: every other loop of the
+            tree that joins two frames of this limb, or this limb and the platform (then ``frame_a``
+            is the platform's frame, copied into the limb's model).
+        platform_frames: The platform's frames a loop limb's model carries besides the platform
+            frame (the platform sides of its internal loops).
     """
 
     name: str
@@ -56,6 +62,8 @@ class LimbCut:
     platform_side_frame: str | None
     attach_name: str
     actuated: tuple[str, ...]
+    loops: tuple[tuple[str, str, str, str], ...] = ()
+    platform_frames: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -65,7 +73,8 @@ class TreeCut:
     Attributes:
         root_link: The tree's root link (the base frame K).
         platform_link: The platform link (its frame is the platform frame O').
-        limbs: Reference limb first, then one limb per loop in sidecar order.
+        limbs: Reference limb first, then one limb per loop that closes a part of the tree on the
+            platform, in sidecar order.
         beyond_platform: Moving joints below the platform, left out of the mechanism.
         locked: Joints locked at 0 by ``joint_type: FIXED``.
     """
@@ -103,29 +112,40 @@ def cut_tree(
     *,
     loop_names: Sequence[str] | None = None,
     stray_advice: str = "lock them with joint_type FIXED",
+    ball_advice: str = "write the ball joint at the closure as three revolute joints ending in the "
+    "limb-side frame and declare the loop '6d'",
 ) -> TreeCut:
     """Decide the platform and the limbs of a tree with closure frame pairs.
+
+    The platform is the link holding a side of the most ``6d`` loops. The tree's branches from the
+    base are grouped into limbs: two branches joined by a loop away from the platform are one
+    limb. The branch holding the platform is the reference limb; every other limb closes on the
+    platform by its first ``6d`` loop with a side on the platform, and every other loop becomes an
+    internal loop of the limb it lies in (docs/closed-loop.md, "Loops inside limbs").
 
     Args:
         model: The tree (already with any ``FIXED`` joints locked).
         sidecar: Loops and motors.
-        platform_link: The platform link; default: the link holding one side of every loop.
-        limb_names: Names, reference limb first then one per loop (default ``limb1`` ...).
+        platform_link: The platform link; default: the link holding a side of the most ``6d`` loops.
+        limb_names: Names, reference limb first then one per closing loop (default ``limb1`` ...).
         source: The file the tree comes from, for messages.
-        loop_names: One name per loop, for the loop limbs' platform-attachment parameters, when
-            the source format names its loops itself (MJCF ``<weld name=...>``). The frame-name
-            convention ``closedloop<k>_A/_B`` is then not enforced. Default: the loop name is
-            the frames' common stem (``closedloop<k>``), else ``loop<k>``.
+        loop_names: One name per loop, for the loops' error parameters, when the source format names
+            its loops itself (MJCF ``<weld name=...>``). The frame-name convention
+            ``closedloop<k>_A/_B`` is then not enforced. Default: the loop name is the frames'
+            common stem (``closedloop<k>``), else ``loop<k>``.
         stray_advice: What the message of a moving joint on no limb tells the user to do
             besides closing its loop (the fix depends on the source format).
+        ball_advice: How to close a limb whose only way to the platform is a 3D loop (the fix
+            depends on the source format).
 
     Raises:
         NoLoopError: no loop is listed and no closure frames are in the tree.
         ClosureFrameError: a listed frame is missing, or a closure frame has no partner.
         UnknownMotorError: a motor joint is not in the tree.
-        PointLoopError: a ``'3d'`` loop.
-        ClosedLoopError: the loops do not meet on one platform, limbs share joints, a loop
-            closes on the base, a motor on no limb, or a moving joint on no limb.
+        PointLoopError: a part of the tree reaches the platform through ``3d`` loops only.
+        ClosedLoopError: no single platform, a loop closing on the base or below the platform,
+            a loop joining two branches that both have a motor, a motor on no limb, or a moving
+            joint on no limb.
     """
     src = Path(source) if source is not None else Path("<tree>")
     loops = list(sidecar.loops) or _convention_pairs(model, src)
@@ -140,110 +160,144 @@ def cut_tree(
     if loop_names is not None and len(loop_names) != len(loops):
         raise ClosedLoopError(src, "loops", f"{len(loop_names)} loop names for {len(loops)} loops")
     types = list(sidecar.types) or ["6d"] * len(loops)
-    for k, t in enumerate(types):
-        if t != "6d":
-            raise PointLoopError(
-                src,
-                loops[k][0],
-                f"loop {k + 1} ({loops[k][0]} ↔ {loops[k][1]}) is a {t.upper()} closure; pkmtol closes "
-                "each limb on the platform's full pose: write the ball joint at the closure as three "
-                "revolute joints ending in the limb-side frame and declare the loop '6d'",
-            )
-    fids = [(_frame_id(model, a), _frame_id(model, b)) for a, b in loops]
-    jids = [(model.frames[fa].parentJoint, model.frames[fb].parentJoint) for fa, fb in fids]
-
-    # the platform: the body (Pinocchio joint) holding one side of every loop
-    if platform_link is not None:
-        if not model.existFrame(platform_link):
-            raise ClosedLoopError(
-                src,
-                platform_link,
-                "platform_link is not a link of the tree (" + ", ".join(_body_names(model)) + ")",
-            )
-        j_p = model.frames[model.getFrameId(platform_link)].parentJoint
-    else:
-        common = set(jids[0])
-        for pair in jids[1:]:
-            common &= set(pair)
-        common.discard(0)
-        if not common:
-            raise ClosedLoopError(
-                src,
-                loops[0][0],
-                "no link holds one side of every loop: pkmtol cuts a tree whose loops all close on one "
-                "platform (loops "
-                + "; ".join(
-                    f"{a} on '{_body_of(model, ja)}' ↔ {b} on '{_body_of(model, jb)}'"
-                    for (a, b), (ja, jb) in zip(loops, jids, strict=True)
-                )
-                + "); set platform_link if the platform is ambiguous",
-            )
-        if len(common) > 1:  # one loop: take the _A side (convention), else the first listed
-            a_side = [k for k, name in enumerate(loops[0]) if name.endswith("_A")]
-            j_p = jids[0][a_side[0] if a_side else 0]
-        else:
-            j_p = common.pop()
-    if j_p == 0:
-        raise ClosedLoopError(
-            src, platform_link or loops[0][0], "the platform cannot be the root link (the base)"
-        )
-    first = loops[0][0] if jids[0][0] == j_p else loops[0][1]
-    plat = platform_link or _link_of(model, first)
+    names_of = (
+        list(loop_names) if loop_names is not None else [_loop_name(p, k + 1) for k, p in enumerate(loops)]
+    )
+    jids = [
+        (model.frames[_frame_id(model, a)].parentJoint, model.frames[_frame_id(model, b)].parentJoint)
+        for a, b in loops
+    ]
+    j_p = _platform_joint(model, loops, jids, types, platform_link, src)
+    first = next((p[s] for p, js in zip(loops, jids, strict=True) for s in (0, 1) if js[s] == j_p), None)
+    plat = platform_link or _link_of(model, first or loops[0][0])
     supports = [list(model.supports[j]) for j in range(model.njoints)]
 
-    cuts: list[tuple[int, list[int], int, str, str | None]] = []  # (loop, path, end joint, limb frame, A)
-    cuts.append((0, supports[j_p][1:], j_p, plat, None))
+    def below(j: int) -> bool:  # strictly below the platform
+        return j != j_p and j_p in supports[j]
+
+    def branch(j: int) -> int:  # the tree's branch from the base that joint j lies on (0: the base)
+        return supports[j][1] if j else 0
+
+    group = {j: j for j in range(1, model.njoints) if model.parents[j] == 0}
+
+    def find(b: int) -> int:
+        while group[b] != b:
+            b = group[b]
+        return b
+
+    joins: dict[int, int] = {}  # loop k joined these branches away from the platform
     for k, ((a, b), (ja, jb)) in enumerate(zip(loops, jids, strict=True), 1):
+        for side, j in ((a, ja), (b, jb)):
+            if below(j):
+                raise ClosedLoopError(
+                    src,
+                    side,
+                    f"loop {k}: {side} hangs below the platform '{plat}'; joints beyond the platform "
+                    "are not part of the parallel mechanism: close the loop on the platform or above it",
+                )
         if ja == j_p and jb == j_p:
             raise ClosedLoopError(src, a, f"loop {k}: both {a} and {b} are on the platform '{plat}'")
-        if ja == j_p:
-            side_p, side_l, j_l = a, b, jb
-        elif jb == j_p:
-            side_p, side_l, j_l = b, a, ja
+        if j_p in (ja, jb):
+            side_l, j_l = (b, jb) if ja == j_p else (a, ja)
+            if j_l == 0:
+                raise ClosedLoopError(
+                    src,
+                    side_l,
+                    f"loop {k}: {side_l} is on the base link; the limb of a loop "
+                    "must have at least one joint between the base and its closure frame",
+                )
+        elif ja == 0 and jb == 0:
+            raise ClosedLoopError(src, a, f"loop {k}: both {a} and {b} are on the base link")
+        elif ja and jb and find(branch(ja)) != find(branch(jb)):
+            joins[k] = find(branch(jb))
+            group[find(branch(jb))] = find(branch(ja))
+    ref = find(branch(j_p))
+    closing: dict[int, int] = {}  # group → the loop that closes it on the platform
+    inner: dict[int, list[int]] = {}
+    for k, (ja, jb) in enumerate(jids, 1):
+        j_l = jb if ja == j_p else ja if jb == j_p else ja or jb
+        g = find(branch(j_l))
+        if j_p in (ja, jb) and g != ref and types[k - 1] == "6d" and g not in closing:
+            closing[g] = k
         else:
+            inner.setdefault(g, []).append(k)
+    groups = [ref] + sorted(closing, key=closing.__getitem__)
+    for g in {find(b) for b in group} - set(groups):
+        points = [k for k in inner.get(g, []) if j_p in jids[k - 1]]
+        if points:
+            k = points[0]
+            raise PointLoopError(
+                src,
+                loops[k - 1][0] if loop_names is None else loop_names[k - 1],
+                f"loop {k} ({loops[k - 1][0]} ↔ {loops[k - 1][1]}) is a 3D closure and the only way "
+                f"the branch of joint '{model.names[g]}' reaches the platform; pkmtol closes each limb "
+                f"on the platform's full pose: {ball_advice}",
+            )
+    joint_names = list(model.names[1:])
+    motors = (
+        list(sidecar.motors) if sidecar.motors is not None else [n for n in joint_names if MOTOR_MARK in n]
+    )
+    for m in motors:
+        if m not in joint_names:
+            raise UnknownMotorError(sidecar.path or src, m, joint_names)
+    for k, g in joins.items():
+        mine = [m for m in motors if find(branch(model.getJointId(m))) == find(g)]
+        if len(mine) > 1:
             raise ClosedLoopError(
                 src,
-                a,
-                f"loop {k} ({a} on '{_body_of(model, ja)}' ↔ {b} on '{_body_of(model, jb)}') "
-                f"does not close on the platform '{plat}'; each loop must have one frame on the platform",
+                loops[k - 1][0],
+                f"loop {k} ({loops[k - 1][0]} ↔ {loops[k - 1][1]}) joins two branches from the base away "
+                f"from the platform, which makes them one limb with the motors {', '.join(mine)}; "
+                "pkmtol's limbs (trees from the base closed by loops) have at most one motor: this "
+                "topology is not handled",
             )
-        if j_l == 0:
-            raise ClosedLoopError(
-                src,
-                side_l,
-                f"loop {k}: {side_l} is on the base link; the limb of a loop "
-                "must have at least one joint between the base and its closure frame",
-            )
-        if j_p in supports[j_l]:
-            raise ClosedLoopError(
-                src,
-                side_l,
-                f"loop {k}: {side_l} hangs below the platform '{plat}'; "
-                "each limb must run from the base to the platform",
-            )
-        cuts.append((k, supports[j_l][1:], j_l, side_l, side_p))
-
-    owner: dict[int, int] = {}
-    names = list(limb_names) if limb_names is not None else [f"limb{i + 1}" for i in range(len(cuts))]
-    if len(names) != len(cuts):
+    names = list(limb_names) if limb_names is not None else [f"limb{i + 1}" for i in range(len(groups))]
+    if len(names) != len(groups):
         raise ClosedLoopError(
             src,
             "limbs",
-            f"{len(names)} limb names for {len(cuts)} limbs (the reference limb, then one per loop)",
+            f"{len(names)} limb names for {len(groups)} limbs (the reference limb, then one per loop "
+            "that closes a limb on the platform)",
         )
-    for i, entry in enumerate(cuts):
-        for j in entry[1]:
-            if j in owner:
-                raise ClosedLoopError(
-                    src,
-                    model.names[j],
-                    f"joint '{model.names[j]}' is shared by limbs '{names[owner[j]]}' and '{names[i]}'; "
-                    "pkmtol needs limbs that are independent serial chains from the base: give each "
-                    "limb its own joints (two joints on the same axis if need be)",
-                )
-            owner[j] = i
-    beyond = [model.names[j] for j in range(1, model.njoints) if j not in owner and j_p in supports[j]]
-    stray = [model.names[j] for j in range(1, model.njoints) if j not in owner and j_p not in supports[j]]
+    owner: dict[int, int] = {}
+    cuts: list[LimbCut] = []
+    for i, g in enumerate(groups):
+        k0 = closing.get(g, 0)
+        ends = [j_p] if k0 == 0 else [jids[k0 - 1][0] if jids[k0 - 1][1] == j_p else jids[k0 - 1][1]]
+        internal, copied = [], []
+        for k in inner.get(g, []):
+            (a, b), (ja, jb) = loops[k - 1], jids[k - 1]
+            if jb == j_p or (ja != j_p and b.endswith("_A") and not a.endswith("_A")):
+                a, b, ja, jb = b, a, jb, ja  # frame a: the platform side, or the _A frame
+            ends += [j for j in (ja, jb) if j and j != j_p]
+            if ja == j_p and k0 != 0:
+                copied.append(a)
+            internal.append((names_of[k - 1], a, b, types[k - 1]))
+        joints = sorted({j for e in ends for j in supports[e][1:] if not below(j) and (k0 == 0 or j != j_p)})
+        owner.update(dict.fromkeys(joints, i))  # the groups' branches are disjoint: no joint is shared
+        if k0 == 0:
+            limb_frame, p_frame, attach = plat, None, _reference_attach(model, plat)
+        else:
+            pa, pb = loops[k0 - 1]
+            limb_frame, p_frame = (pb, pa) if jids[k0 - 1][0] == j_p else (pa, pb)
+            attach = names_of[k0 - 1]
+            if attach in {model.names[j] for j in joints}:
+                attach += "_closure"
+        cuts.append(
+            LimbCut(
+                name=names[i],
+                joints=tuple(model.names[j] for j in joints),
+                loop=k0,
+                limb_frame=limb_frame,
+                platform_side_frame=p_frame,
+                attach_name=attach,
+                actuated=(),
+                loops=tuple(internal),
+                platform_frames=tuple(copied),
+            )
+        )
+    beyond = [model.names[j] for j in range(1, model.njoints) if j not in owner and below(j)]
+    stray = [model.names[j] for j in range(1, model.njoints) if j not in owner and not below(j) and j != j_p]
     if stray:
         raise ClosedLoopError(
             src,
@@ -251,44 +305,63 @@ def cut_tree(
             f"moving joint(s) {', '.join(stray)} lie on no limb (neither between the base and "
             f"a closure nor beyond the platform); close their loop, or {stray_advice}",
         )
-
-    joint_names = list(model.names[1:])
-    if sidecar.motors is not None:
-        motors = list(sidecar.motors)
-    else:
-        motors = [n for n in joint_names if MOTOR_MARK in n]
-    for m in motors:
-        if m not in joint_names:
-            raise UnknownMotorError(sidecar.path or src, m, joint_names)
     by_limb: list[list[str]] = [[] for _ in cuts]
     for m in motors:
         j = model.getJointId(m)
         if j not in owner:
             raise ClosedLoopError(src, m, f"motor joint '{m}' is beyond the platform, on no limb")
         by_limb[owner[j]].append(m)
-
-    limbs = []
-    for i, (k, path, _end, limb_frame, p_frame) in enumerate(cuts):
-        if k == 0:
-            attach = _reference_attach(model, plat)
-        else:
-            attach = loop_names[k - 1] if loop_names is not None else _loop_name(loops[k - 1], k)
-            if attach in {model.names[j] for j in path}:
-                attach += "_closure"
-        limbs.append(
-            LimbCut(
-                name=names[i],
-                joints=tuple(model.names[j] for j in path),
-                loop=k,
-                limb_frame=limb_frame,
-                platform_side_frame=p_frame,
-                attach_name=attach,
-                actuated=tuple(by_limb[i]),
-            )
-        )
+    cuts = [dataclasses.replace(c, actuated=tuple(m)) for c, m in zip(cuts, by_limb, strict=True)]
     return TreeCut(
-        root_link=_body_of(model, 0), platform_link=plat, limbs=tuple(limbs), beyond_platform=tuple(beyond)
+        root_link=_body_of(model, 0), platform_link=plat, limbs=tuple(cuts), beyond_platform=tuple(beyond)
     )
+
+
+def _platform_joint(
+    model: pin.Model,
+    loops: list[tuple[str, str]],
+    jids: list[tuple[int, int]],
+    types: list[str],
+    platform_link: str | None,
+    src: Path,
+) -> int:
+    """The platform's joint: ``platform_link``'s, else the body holding a side of the most 6d loops."""
+    if platform_link is not None:
+        if not model.existFrame(platform_link):
+            raise ClosedLoopError(
+                src,
+                platform_link,
+                "platform_link is not a link of the tree (" + ", ".join(_body_names(model)) + ")",
+            )
+        j_p = int(model.frames[_frame_id(model, platform_link)].parentJoint)
+    else:
+        count: dict[int, int] = {}
+        for (ja, jb), t in zip(jids, types, strict=True):
+            for j in {ja, jb} - {0}:
+                count[j] = count.get(j, 0) + (t == "6d")
+        top = max(count.values(), default=0)
+        best = [j for j, c in count.items() if c == top]
+        if len(loops) == 1:  # one loop: take the _A side (convention), else the first listed
+            a_side = [k for k, name in enumerate(loops[0]) if name.endswith("_A")]
+            j_p = jids[0][a_side[0] if a_side else 0]
+        elif top == 0 or len(best) > 1:
+            raise ClosedLoopError(
+                src,
+                loops[0][0],
+                "no single link holds a side of the most 6d loops, so the platform is ambiguous (loops "
+                + "; ".join(
+                    f"{a} on '{_body_of(model, ja)}' ↔ {b} on '{_body_of(model, jb)}'"
+                    for (a, b), (ja, jb) in zip(loops, jids, strict=True)
+                )
+                + "); set platform_link",
+            )
+        else:
+            j_p = best[0]
+    if j_p == 0:
+        raise ClosedLoopError(
+            src, platform_link or loops[0][0], "the platform cannot be the root link (the base)"
+        )
+    return j_p
 
 
 def _convention_pairs(model: pin.Model, src: Path) -> list[tuple[str, str]]:
@@ -347,7 +420,7 @@ def _check_partners(
 
 
 def _frame_id(model: pin.Model, name: str) -> int:
-    return int(model.getFrameId(name))
+    return frame_id(model, name)
 
 
 def _body_names(model: pin.Model) -> list[str]:
@@ -388,132 +461,3 @@ def _reference_attach(model: pin.Model, platform: str) -> str:
 def _loop_name(pair: tuple[str, str], k: int) -> str:
     stems = {re.sub(r"_[AB]$", "", name) for name in pair}
     return stems.pop() if len(stems) == 1 and not pair[0].endswith(pair[1]) else f"loop{k}"
-
-
-def limb_model(
-    tree: pin.Model, cut: TreeCut, limb: LimbCut
-) -> tuple[pin.Model, dict[int, int], dict[int, int]]:
-    """The serial ``pin.Model`` of one limb, built joint by joint from the tree.
-
-    Returns:
-        ``(model, joint_map, frame_map)``: the limb model (root link, the limb's joints with the
-        tree's joint models, placements and limits, their joint and body frames, and a frame named
-        after the platform link at the limb's end) and the maps tree index → limb index of the
-        joints and frames copied.
-    """
-    m = pin.Model()
-    m.name = limb.name
-    path = [tree.getJointId(n) for n in limb.joints]
-    jmap = {0: 0}
-    for j in path:
-        jm = tree.joints[j]
-        iq, iv = jm.idx_q, jm.idx_v
-        jmap[j] = m.addJoint(
-            jmap[tree.parents[j]],
-            jm,
-            tree.jointPlacements[j],
-            tree.names[j],
-            tree.effortLimit[iv : iv + jm.nv],
-            tree.velocityLimit[iv : iv + jm.nv],
-            tree.lowerPositionLimit[iq : iq + jm.nq],
-            tree.upperPositionLimit[iq : iq + jm.nq],
-        )
-        m.appendBodyToJoint(jmap[j], tree.inertias[j], pin.SE3.Identity())
-    fmap = {0: 0}
-    keep = set(jmap)
-    for fid, f in enumerate(tree.frames):
-        if fid == 0 or f.parentJoint not in keep:
-            continue
-        parent = fmap.get(f.parentFrame, 0)
-        if f.type == pin.FrameType.JOINT:
-            fmap[fid] = m.addJointFrame(jmap[f.parentJoint], parent)
-        else:
-            fmap[fid] = m.addFrame(
-                pin.Frame(f.name, jmap[f.parentJoint], parent, f.placement, f.type, f.inertia), False
-            )
-    if limb.loop != 0:
-        if m.existFrame(cut.platform_link):
-            raise ClosedLoopError(
-                Path("<tree>"),
-                cut.platform_link,
-                f"limb '{limb.name}' already has a frame named like the platform link",
-            )
-        j_p = tree.frames[tree.getFrameId(cut.platform_link)].parentJoint
-        assert limb.platform_side_frame is not None
-        f_b = tree.getFrameId(limb.limb_frame)
-        jMB = tree.frames[f_b].placement
-        jpMA = _placement_on(tree, limb.platform_side_frame, j_p)
-        jpMp = _placement_on(tree, cut.platform_link, j_p)
-        jMp = jMB * jpMA.inverse() * jpMp
-        frame = pin.Frame(cut.platform_link, jmap[path[-1]], fmap.get(f_b, 0), jMp, pin.FrameType.OP_FRAME)
-        m.addFrame(frame, False)
-    return m, jmap, fmap
-
-
-def _placement_on(tree: pin.Model, frame: str, joint: int) -> pin.SE3:
-    f = tree.frames[tree.getFrameId(frame)]
-    assert f.parentJoint == joint
-    return f.placement
-
-
-def limb_visual(visual: Any, jmap: dict[int, int], fmap: dict[int, int], with_base: bool) -> Any:
-    """The tree's visuals that move with the limb's joints (and the base's, for one limb)."""
-    if visual is None:
-        return None
-    gm = pin.GeometryModel()
-    for go in visual.geometryObjects:
-        if go.parentJoint not in jmap or (go.parentJoint == 0 and not with_base):
-            continue
-        g = go.copy()
-        g.parentJoint = jmap[go.parentJoint]
-        g.parentFrame = fmap.get(go.parentFrame, 0)
-        gm.addGeometryObject(g)
-    return gm
-
-
-def cut_limbs(
-    tree: pin.Model,
-    visual: Any,
-    cut: TreeCut,
-    home: Mapping[str, float] | None,
-    source: Path | str,
-) -> list[Limb]:
-    """The :class:`~pkmtol.model.limb.Limb` objects of a cut tree (reference limb first).
-
-    Args:
-        tree: The tree the cut was made on.
-        visual: The tree's visual ``pin.GeometryModel`` (or None).
-        cut: How the tree was cut (:func:`cut_tree`).
-        home: Joint values [rad or m] by joint name at which every loop closes; others are 0.
-        source: The file the tree comes from (each limb's ``urdf_path``, and messages).
-
-    Raises:
-        ClosedLoopError: ``home`` names a joint that is not in the tree.
-        URDFError: a limb is not a serial chain of 1-DOF joints (:func:`~pkmtol.model.limb.make_limb`).
-    """
-    source = Path(source)
-    home = dict(home or {})
-    names = set(tree.names[1:])
-    for jname in home:
-        if jname not in names:
-            raise ClosedLoopError(
-                source,
-                jname,
-                f"home names joint '{jname}', which is not a joint of the tree "
-                f"(joints: {', '.join(tree.names[1:])})",
-            )
-    limbs = []
-    for i, lc in enumerate(cut.limbs):
-        model, jmap, fmap = limb_model(tree, cut, lc)
-        q_home = [float(home.get(n, 0.0)) for n in lc.joints]
-        limb = make_limb(
-            lc.name,
-            model,
-            list(lc.actuated),
-            cut.platform_link,
-            q_home,
-            source,
-            visual_model=limb_visual(visual, jmap, fmap, with_base=i == 0),
-        )
-        limbs.append(dataclasses.replace(limb, attach_name=lc.attach_name))
-    return limbs

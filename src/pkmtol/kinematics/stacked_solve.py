@@ -1,0 +1,63 @@
+"""Stacked linear algebra of the batched solver: Newton steps, inverses and condition numbers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def newton_steps(a: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise."""
+    if a.shape[1] == a.shape[2]:
+        try:
+            return np.linalg.solve(a, res[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:
+            return np.array([_solve_one(ak, rk) for ak, rk in zip(a, res, strict=True)])
+    if a.shape[1] > a.shape[2]:
+        qm, r = np.linalg.qr(a)
+        rhs = np.swapaxes(qm, 1, 2) @ res[:, :, None]
+        try:
+            return np.linalg.solve(r, rhs)[:, :, 0]
+        except np.linalg.LinAlgError:
+            pass
+    return np.array([np.linalg.lstsq(ak, rk, rcond=None)[0] for ak, rk in zip(a, res, strict=True)])
+
+
+def _solve_one(a: np.ndarray, r: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(a, r)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(a, r, rcond=None)[0]
+
+
+def condition_bound(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``κ_F`` (b,) and the inverse (or pseudo-inverse) (b, free, rows) of stacked Jacobians."""
+    rows, cols = a.shape[1:]
+    if rows == cols:
+        try:
+            inv = np.linalg.inv(a)
+        except np.linalg.LinAlgError:
+            inv = np.array([_inv_or_nan(ak) for ak in a])
+        bound = np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(inv, axis=(1, 2))
+        return np.where(np.isfinite(bound), bound, np.inf), inv
+    if rows > cols:
+        g = np.swapaxes(a, 1, 2) @ a
+        try:
+            g_inv = np.linalg.inv(g)
+        except np.linalg.LinAlgError:
+            g_inv = np.array([_inv_or_nan(gk) for gk in g])
+        bound = np.sqrt(np.linalg.norm(g, axis=(1, 2)) * np.linalg.norm(g_inv, axis=(1, 2)))
+        return np.where(np.isfinite(bound), bound, np.inf), g_inv @ np.swapaxes(a, 1, 2)
+    return np.full(len(a), np.inf), np.full((len(a), cols, rows), np.nan)
+
+
+def _inv_or_nan(a: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return np.full(a.shape[::-1], np.nan)
+
+
+def exact_condition(a: np.ndarray) -> float:
+    """The 2-norm condition number ``s_max / s_min`` of one matrix (inf if singular), by SVD."""
+    s = np.linalg.svd(a, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
