@@ -187,6 +187,7 @@ def test_closed_form_chi3_cdf_agrees_with_gammainc():
     assert closed[0] == 0.0 and closed[-1] == 1.0
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # the pose without variance computes no inf·0
 def test_stacked_reliability_matches_pose_by_pose():
     from pkmtol.design.reliability import exact_reliability_many
 
@@ -202,4 +203,5 @@ def test_stacked_reliability_matches_pose_by_pose():
         assert r[k] == pytest.approx(rk, abs=1e-15)
         np.testing.assert_allclose(g[k], gk, rtol=1e-12, atol=1e-12 * np.abs(gk).max(initial=1.0))
     assert r[3] == 1.0 and not g[3].any()
+    assert np.isfinite(g).all()
     assert exact_reliability_many(cov, TARGET)[1] is None

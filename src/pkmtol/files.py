@@ -10,11 +10,11 @@ from pathlib import Path
 from pkmtol.exceptions import OutputError
 
 
-def write_atomic(path: Path | str, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder, renamed over it.
+def stage(path: Path | str, data: bytes) -> str:
+    """Write ``data`` to a new temporary file beside ``path`` and return its name (the caller renames it).
 
-    The file is either the old one, or the complete new one — never a partial write. It gets the
-    permissions an ordinary new file would get (``0666 & ~umask``).
+    The temporary file gets the permissions an ordinary new file would get (``0666 & ~umask``;
+    ``mkstemp`` creates 0600).
 
     Raises:
         OutputError: the folder is missing or not writable (the temporary file is removed).
@@ -29,12 +29,29 @@ def write_atomic(path: Path | str, data: bytes) -> None:
             os.fsync(f.fileno())
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600
-        os.replace(tmp, path)
-        tmp = None
+        os.chmod(tmp, 0o666 & ~umask)
+        return tmp
     except OSError as err:
-        raise OutputError(path, f"{err.strerror or err}; choose another output location") from err
-    finally:
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+        raise OutputError(path, f"{err.strerror or err}; choose another output location") from err
+
+
+def write_atomic(path: Path | str, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder, renamed over it.
+
+    The file is either the old one, or the complete new one — never a partial write. It gets the
+    permissions an ordinary new file would get (``0666 & ~umask``).
+
+    Raises:
+        OutputError: the folder is missing or not writable (the temporary file is removed).
+    """
+    path = Path(path)
+    tmp = stage(path, data)
+    try:
+        os.replace(tmp, path)
+    except OSError as err:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise OutputError(path, f"{err.strerror or err}; choose another output location") from err

@@ -74,8 +74,13 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_run)
 
 
-def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: int) -> tuple[np.ndarray, str]:
-    """Design-β σ of every parameter (NaN where not allocated), and where they came from."""
+def _tolerances(
+    mech: Mechanism, pset: ParameterSet, path: Path | None, seed: int, settings: CalibrationSettings
+) -> tuple[np.ndarray, str]:
+    """Design-β σ of every parameter (NaN where not allocated), and where they came from.
+
+    A calibrated-mode design's identified parameters are drawn at the manufacturing σ of ``settings``.
+    """
     if path is not None:
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
@@ -94,7 +99,7 @@ def _tolerances(mech: Mechanism, pset: ParameterSet, path: Path | None, seed: in
         tol = np.full(len(pset), np.nan)
         design = doc.get("method_design") or {}
         chosen = dict(zip(design.get("parameters", []), design.get("tolerance", []), strict=False))
-        manufacturing = CalibrationSettings().manufacturing_sigma(pset)
+        manufacturing = settings.manufacturing_sigma(pset)
         classes_in_mode = {p["name"]: p.get("class_in_mode") for p in doc["parameters"]}
         for i, name in enumerate(pset.names):
             t = chosen.get(name, None) if chosen else None
@@ -148,7 +153,7 @@ def _run(args: argparse.Namespace) -> int:
         meas = read_measurements(args.measurements, mech, settings.targets(mech).shape[0])
         sigma = None
         if settings.prior:
-            tol, _ = _tolerances(mech, pset, args.tolerances, args.seed)
+            tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
             sigma = design_sigma(pset, classes, settings, tol)
         cal = calibrate_measurements(mech, pset, classes, settings, meas, args.measurements, sigma)
         text = identified_text(cal)
@@ -166,7 +171,7 @@ def _run(args: argparse.Namespace) -> int:
             print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
         print(text, end="")
     else:
-        tol, source = _tolerances(mech, pset, args.tolerances, args.seed)
+        tol, source = _tolerances(mech, pset, args.tolerances, args.seed, settings)
         sigma = design_sigma(pset, classes, settings, tol)
         print(
             f"machines drawn with: compensatable errors at the manufacturing σ "

@@ -14,6 +14,7 @@ caller's generator, β by β and cell by cell as one draw per cell would.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,19 +114,14 @@ def scale_design(
         r = grid_reliability(Jsel, base * math.exp(log_s), target_m, Esel)
         return criterion_value(r, criterion, w_idx) - r_star
 
-    lo, hi = -1.0, 1.0
-    while excess(lo) < 0:
-        lo -= 2.0
-        if lo < -60:
-            raise InvalidRequestError(
-                "no scale of the tolerances reaches the target reliability: what no tolerance changes "
-                "(the calibration's measurement noise) already exceeds it; measure more poses, use a "
-                "more precise tracker, or relax Δλ* or β"
-            )
-    while excess(hi) > 0:
-        hi += 2.0
-        if hi > 60:
-            raise InvalidRequestError("the design reaches the target at any scale: Δλ does not depend on it")
+    lo, hi = bracket_log_scale(
+        excess,
+        60.0,
+        "no scale of the tolerances reaches the target reliability: what no tolerance changes "
+        "(the calibration's measurement noise) already exceeds it; measure more poses, use a "
+        "more precise tracker, or relax Δλ* or β",
+        "the design reaches the target at any scale: Δλ does not depend on it",
+    )
     from scipy import optimize  # only the exact and cost designs find roots; keep it out of start-up
 
     if criterion == "every" and len(Jsel) > 1:
@@ -141,6 +137,29 @@ def scale_design(
         criterion=criterion,
         target_reliability=r_star,
     )
+
+
+def bracket_log_scale(
+    excess: Callable[[float], float], limit: float, never: str, always: str
+) -> tuple[float, float]:
+    """A bracket ``(lo, hi)`` of log scales with ``excess(lo) ≥ 0 ≥ excess(hi)`` (excess falls as it grows).
+
+    The bracket starts at ±1 and widens by 2 until it holds, up to ``±limit``.
+
+    Raises:
+        InvalidRequestError: ``never`` if no scale down to ``e^−limit`` has a non-negative excess,
+            ``always`` if none up to ``e^limit`` has a non-positive one.
+    """
+    lo, hi = -1.0, 1.0
+    while excess(lo) < 0:
+        lo -= 2.0
+        if lo < -limit:
+            raise InvalidRequestError(never)
+    while excess(hi) > 0:
+        hi += 2.0
+        if hi > limit:
+            raise InvalidRequestError(always)
+    return lo, hi
 
 
 def _every_root(

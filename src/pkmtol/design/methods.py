@@ -18,7 +18,7 @@ from scipy import optimize
 
 import pkmtol.values as values
 from pkmtol.design.cost import cost_model, cost_optimal
-from pkmtol.design.exact import criterion_value, scale_design
+from pkmtol.design.exact import bracket_log_scale, criterion_value, scale_design
 from pkmtol.design.orientation import joint_covariance, joint_reliability
 from pkmtol.design.reliability import reliability_fosm
 from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
@@ -166,18 +166,13 @@ def _scale_joint(
     def excess(log_s: float) -> float:
         return criterion_value(rel(math.exp(log_s), sel), criterion, w_idx) - r_star
 
-    lo, hi = -1.0, 1.0
-    while excess(lo) < 0:
-        lo -= 2.0
-        if lo < -40:
-            raise InvalidRequestError(
-                "no scale of the tolerances meets both the position and the orientation target: what "
-                "no tolerance changes (the calibration's noise) already exceeds one of them"
-            )
-    while excess(hi) > 0:
-        hi += 2.0
-        if hi > 40:
-            raise InvalidRequestError("the design meets both targets at any scale: nothing depends on it")
+    lo, hi = bracket_log_scale(
+        excess,
+        40.0,
+        "no scale of the tolerances meets both the position and the orientation target: what "
+        "no tolerance changes (the calibration's noise) already exceeds one of them",
+        "the design meets both targets at any scale: nothing depends on it",
+    )
     s = math.exp(optimize.brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10))
     return np.where(finite, shape * s, np.inf), rel(s, maps)
 

@@ -129,8 +129,10 @@ def exact_reliability_many(
     r[zero] = 1.0
     if not gradient:
         return r, None
-    pdf = math.sqrt(2.0 / math.pi) * y * y * np.exp(-x)
-    coef = w * pdf * (-y / (2.0 * q))
+    with np.errstate(over="ignore", invalid="ignore"):  # a pose without variance: y = ∞, set below
+        pdf = math.sqrt(2.0 / math.pi) * y * y * np.exp(-x)
+        coef = w * pdf * (-y / (2.0 * q))
+    coef[zero] = 0.0
     d_lam = coef @ (u**2)  # (m, 3)
     grad = (vec * d_lam[:, None, :]) @ np.swapaxes(vec, 1, 2)
     grad[zero] = 0.0

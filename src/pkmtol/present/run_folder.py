@@ -23,14 +23,13 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 from pkmtol.exceptions import OutputError, OutputLockedError
-from pkmtol.files import write_atomic
+from pkmtol.files import stage, write_atomic
 
 #: The manifest of a run: ``{"pkmtol_run": 1, "files": [...], "outside": [...]}``.
 MANIFEST = "pkmtol-run.json"
@@ -94,7 +93,7 @@ class RunFolder:
         staged: list[tuple[Path, str]] = []
         try:
             for path, data in targets:
-                staged.append((path, _stage(path, data)))
+                staged.append((path, stage(path, data)))
         except OutputError:
             for _, tmp in staged:
                 with contextlib.suppress(OSError):
@@ -128,26 +127,6 @@ class RunFolder:
             if isinstance(name, str) and Path(name).name == name and name not in ("", ".", "..", MANIFEST):
                 names.add(name)
         return names
-
-
-def _stage(path: Path, data: bytes) -> str:
-    """Write ``data`` to a temporary file beside ``path`` (the caller renames it); OutputError if not."""
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        return tmp
-    except OSError as err:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-        raise OutputError(path, f"{err.strerror or err}; choose another output location") from err
 
 
 def _lock(folder: Path) -> int:
