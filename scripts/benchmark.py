@@ -113,6 +113,11 @@ def process(cmd: list[str], cwd: Path, env: dict[str, str] | None = None) -> tup
     return wall, cpu, after.ru_maxrss / 1024.0, proc.stdout
 
 
+#: Issue 15's baselines as it measured them on main (2 cores, best of N): scipy least_squares and the
+#: per-pose solver over the 147-point grid [poses/s]. The yardstick of the machine-speed line.
+ISSUE_RATES = {"scipy": 3_000.0, "per_pose": 5_900.0}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("robot", nargs="?", default="robots/r2rps_ups", type=Path)
@@ -386,6 +391,18 @@ def main() -> None:
     print("-" * (w + 110))
     for name, size, value, base, target in rows:
         print(f"{name.ljust(w)}  {size:>11}  {value:>18}  {base:<55}  {target}")
+    # issue 15 set its absolute targets on a 2-core VM on another day; the code its baselines ran is
+    # unchanged, so their rates here tell how fast this machine is against that one
+    speed = rate["ik_scipy"] / ISSUE_RATES["scipy"]
+    print(
+        f"\nMachine speed against issue 15's: scipy {rate['ik_scipy']:,.0f}/s here against "
+        f"{ISSUE_RATES['scipy']:,.0f}/s there = {speed:.2f}× (the per-pose solver: "
+        f"{rate['ik_per_pose']:,.0f}/s against {ISSUE_RATES['per_pose']:,.0f}/s = "
+        f"{rate['ik_per_pose'] / ISSUE_RATES['per_pose']:.2f}×). The targets at this speed: "
+        f"IK ≥ {20_000 * speed:,.0f}/s, IK + error model ≥ {10_000 * speed:,.0f}/s, "
+        f"forward solves ≥ {15_000 * speed:,.0f}/s, allocate ≤ {2.0 / speed:.1f} s CPU, "
+        f"10⁶ samples ≤ {3.0 / speed:.1f} s, cost design ≤ {3.0 / speed:.1f} s."
+    )
 
 
 def calibration_rows(mech, pset, chain, args, py):  # noqa: ANN001, ANN201 - script helper
