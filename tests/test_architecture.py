@@ -160,3 +160,14 @@ def test_import_pkmtol_loads_no_stage():
     code = f"import sys, pkmtol; print(sorted(m for m in sys.modules if m.startswith({heavy})))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_the_allocate_command_starts_without_the_optional_scipy_packages():
+    # scipy.stats, .optimize and .integrate cost most of a second of start-up on the CI VM; only the
+    # exact and cost designs, the quantile column and some checks need them, and import them there
+    code = (
+        "import sys, pkmtol.cli.allocate, pkmtol.design.job, pkmtol.present.outputs; "
+        "print(sorted(m for m in ('scipy.stats', 'scipy.optimize', 'scipy.integrate') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

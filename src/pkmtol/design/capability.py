@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import special
 
 from pkmtol.design.reliability import exact_distribution
 from pkmtol.error_model.accuracy import first_max, norm_moments
@@ -91,7 +91,10 @@ def _quantile(cdf: Callable[[float], float], covariance: np.ndarray, probability
     lam_max = float(np.linalg.eigvalsh(np.asarray(covariance, dtype=float)).max())
     if lam_max <= 0.0:
         return 0.0
-    hi = math.sqrt(lam_max) * float(stats.chi.ppf(probability, 3)) * (1 + 1e-9)
+    from scipy import optimize  # the quantile column only; keep it out of the start-up
+
+    # F⁻¹_χ₃(p) = √(2 P⁻¹(3/2, p)), as scipy.stats.chi computes it
+    hi = math.sqrt(lam_max) * math.sqrt(2.0 * float(special.gammaincinv(1.5, probability))) * (1 + 1e-9)
     return float(optimize.brentq(lambda q: cdf(q) - probability, 0.0, hi, xtol=1e-12 * hi, rtol=1e-10))
 
 
@@ -132,8 +135,8 @@ def capability(covariance: np.ndarray, target: float, reliability_target: float 
         std=std,
         cpk=cpk,
         ppm=ppm,
-        ppm_normal=1e6 * stats.norm.sf(3.0 * cpk),
-        sigma_level=stats.norm.isf(p),
+        ppm_normal=1e6 * special.ndtr(-3.0 * cpk),  # the normal tail Φ(−3 Cpk), as scipy.stats.norm.sf
+        sigma_level=-special.ndtri(p),  # Φ⁻¹(1 − p), as scipy.stats.norm.isf computes it
         quantile=quant,
         reliability_target=reliability_target,
     )

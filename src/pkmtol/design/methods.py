@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy import optimize
 
 import pkmtol.values as values
 from pkmtol.design.cost import cost_model, cost_optimal
@@ -173,6 +172,8 @@ def _scale_joint(
         "no tolerance changes (the calibration's noise) already exceeds one of them",
         "the design meets both targets at any scale: nothing depends on it",
     )
+    from scipy import optimize  # only the joint-target designs find this root; keep it out of start-up
+
     s = math.exp(optimize.brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10))
     return np.where(finite, shape * s, np.inf), rel(s, maps)
 
