@@ -391,14 +391,16 @@ def main() -> None:
     print("-" * (w + 110))
     for name, size, value, base, target in rows:
         print(f"{name.ljust(w)}  {size:>11}  {value:>18}  {base:<55}  {target}")
-    # issue 15 set its absolute targets on a 2-core VM on another day; the code its baselines ran is
-    # unchanged, so their rates here tell how fast this machine is against that one
-    speed = rate["ik_scipy"] / ISSUE_RATES["scipy"]
+    # issue 15 set its absolute targets on a 2-core VM on another day; its two baselines do the same
+    # work here (scipy's solver unchanged, the per-pose solver the same Newton loop), so their rates
+    # tell how fast this machine is against that one. The larger factor is the stricter reading.
+    factors = {key: rate[f"ik_{key}"] / ISSUE_RATES[key] for key in ISSUE_RATES}
+    speed = max(factors.values())
     print(
         f"\nMachine speed against issue 15's: scipy {rate['ik_scipy']:,.0f}/s here against "
-        f"{ISSUE_RATES['scipy']:,.0f}/s there = {speed:.2f}× (the per-pose solver: "
+        f"{ISSUE_RATES['scipy']:,.0f}/s there = {factors['scipy']:.2f}×, the per-pose solver "
         f"{rate['ik_per_pose']:,.0f}/s against {ISSUE_RATES['per_pose']:,.0f}/s = "
-        f"{rate['ik_per_pose'] / ISSUE_RATES['per_pose']:.2f}×). The targets at this speed: "
+        f"{factors['per_pose']:.2f}×. The targets at the larger factor, {speed:.2f}×: "
         f"IK ≥ {20_000 * speed:,.0f}/s, IK + error model ≥ {10_000 * speed:,.0f}/s, "
         f"forward solves ≥ {15_000 * speed:,.0f}/s, allocate ≤ {2.0 / speed:.1f} s CPU, "
         f"10⁶ samples ≤ {3.0 / speed:.1f} s, cost design ≤ {3.0 / speed:.1f} s."
