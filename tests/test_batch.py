@@ -17,6 +17,7 @@ from pkmtol.exceptions import ConvergenceError, JointLimitError, UnreachableTarg
 from pkmtol.kinematics import se3_batch
 from pkmtol.kinematics.batch import BatchChain, Solutions
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.continuation import continuation
 from pkmtol.kinematics.perturbation import perturbed_limb_models
 from pkmtol.model.loader import load_mechanism
 
@@ -273,3 +274,28 @@ def test_separate_many_matches_separate_and_keeps_errors():
         np.testing.assert_allclose(out[k].Y_c, ref.Y_c, atol=1e-12)  # one constraint limb: same basis
     parts = Solutions.concatenate([sols.take([1, 0]), sols.take([2])])
     np.testing.assert_array_equal(parts.q, sols.q[[1, 0, 2]])
+
+
+def test_continuation_solves_the_grid_as_the_per_pose_solver_and_reports_a_failing_first_point():
+    seed = load_mechanism(ROOT / "robots" / "r2rps_ups")
+    chain = ClosedChain(seed)
+    batch = BatchChain(seed, chain=chain)
+    home = chain.home()
+    grid = seed.task_space.grid()
+    sols = continuation(batch, grid, home)
+    q, reference = home, []
+    for target in grid:  # the per-pose solver along the grid, each point from the one before
+        q = chain.inverse(target, q).q_all
+        reference.append(q)
+    np.testing.assert_allclose(sols.q, np.array(reference), atol=1e-12)
+    assert sols.ok.all()
+
+    # the first point out of reach: its error is the batch's from the start, the rest solved from it
+    points = np.vstack([[0.0, 0.0, 5.0], grid[:4]])
+    out = continuation(batch, points, home)
+    alone = batch.inverse(points[:1], home[None])
+    assert type(out.errors[0]) is JointLimitError
+    assert str(out.errors[0]) == str(alone.errors[0])
+    rest = batch.inverse(points[1:], np.tile(home, (4, 1)))
+    np.testing.assert_allclose(out.q[1:], rest.q, atol=1e-12)
+    assert out.ok[1:].all()
