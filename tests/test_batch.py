@@ -290,7 +290,7 @@ def test_continuation_solves_the_grid_as_the_per_pose_solver_and_reports_a_faili
     np.testing.assert_allclose(sols.q, np.array(reference), atol=1e-12)
     assert sols.ok.all()
 
-    # the first point out of reach: its error is the batch's from the start, the rest solved from it
+    # the first point out of reach: its error is the batch's from the start, the rest solved from the start
     points = np.vstack([[0.0, 0.0, 5.0], grid[:4]])
     out = continuation(batch, points, home)
     alone = batch.inverse(points[:1], home[None])
