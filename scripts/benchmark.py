@@ -27,7 +27,9 @@ per sample for the forward solves; ``python -c pass`` and the eager import of ev
 start-up; the per-pose ``gammainc`` quadrature for the reliabilities. The machine is a shared VM
 whose speed drifts by tens of per cent: the in-process rows are interleaved run after run and the
 best run is kept; whole-process rows are the best of ``--repeat`` runs. Ratios to the baseline are
-the robust figures.
+the robust figures. Under the table, a line compares this run's scipy and per-pose baselines with
+issue 15's measurements of them (:data:`ISSUE_RATES`) and prints the absolute targets scaled by the
+larger factor: what the targets ask of a machine as fast as this one is today (docs/scale.md).
 """
 
 from __future__ import annotations
