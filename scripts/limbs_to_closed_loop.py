@@ -20,6 +20,7 @@ import argparse
 import sys
 import tomllib
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -143,13 +144,25 @@ def generate(folder: Path) -> dict[str, str]:
     return {"robot.urdf": urdf, "robot.yaml": yaml, "mechanism.toml": "\n".join(lines) + "\n"}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def write_or_check(
+    argv: list[str] | None,
+    description: str | None,
+    generate_files: Callable[[Path], dict[str, str]],
+    written: str,
+    script: str,
+) -> int:
+    """The command line of a limb-folder converter: write ``generate_files(robot)`` to OUT, or ``--check`` it.
+
+    ``written`` names the files for the help text; ``script`` is the command that regenerates them.
+    """
+    ap = argparse.ArgumentParser(
+        description=description, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("robot", type=Path, help="limb-folder robot (mechanism.toml with [[limbs]])")
-    ap.add_argument("out", type=Path, help="folder to write robot.urdf, robot.yaml and mechanism.toml to")
+    ap.add_argument("out", type=Path, help=f"folder to write {written} to")
     ap.add_argument("--check", action="store_true", help="compare with OUT instead of writing")
     args = ap.parse_args(argv)
-    files = generate(args.robot)
+    files = generate_files(args.robot)
     if args.check:
         stale = [
             n
@@ -158,10 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         ]
         if stale:
             print(f"out of date in {args.out}: {', '.join(stale)}", file=sys.stderr)
-            print(
-                f"regenerate with: python scripts/limbs_to_closed_loop.py {args.robot} {args.out}",
-                file=sys.stderr,
-            )
+            print(f"regenerate with: python scripts/{script} {args.robot} {args.out}", file=sys.stderr)
             return 1
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
@@ -169,6 +179,12 @@ def main(argv: list[str] | None = None) -> int:
         (args.out / name).write_text(text, encoding="utf-8")
         print(f"wrote {args.out / name}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return write_or_check(
+        argv, __doc__, generate, "robot.urdf, robot.yaml and mechanism.toml", "limbs_to_closed_loop.py"
+    )
 
 
 if __name__ == "__main__":

@@ -21,7 +21,6 @@ Usage:
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tomllib
 import xml.etree.ElementTree as ET
@@ -31,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from limbs_to_closed_loop import toml_value, urdf_origin  # noqa: E402
+from limbs_to_closed_loop import toml_value, urdf_origin, write_or_check  # noqa: E402
 
 from pkmtol.model.loader import load_mechanism  # noqa: E402
 
@@ -202,30 +201,7 @@ def generate(folder: Path) -> dict[str, str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("robot", type=Path, help="limb-folder robot (mechanism.toml with [[limbs]])")
-    ap.add_argument("out", type=Path, help=f"folder to write {MJCF_NAME} and mechanism.toml to")
-    ap.add_argument("--check", action="store_true", help="compare with OUT instead of writing")
-    args = ap.parse_args(argv)
-    files = generate(args.robot)
-    if args.check:
-        stale = [
-            n
-            for n, t in files.items()
-            if not (args.out / n).is_file() or (args.out / n).read_text(encoding="utf-8") != t
-        ]
-        if stale:
-            print(f"out of date in {args.out}: {', '.join(stale)}", file=sys.stderr)
-            print(
-                f"regenerate with: python scripts/limbs_to_mjcf.py {args.robot} {args.out}", file=sys.stderr
-            )
-            return 1
-        return 0
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, text in files.items():
-        (args.out / name).write_text(text, encoding="utf-8")
-        print(f"wrote {args.out / name}")
-    return 0
+    return write_or_check(argv, __doc__, generate, f"{MJCF_NAME} and mechanism.toml", "limbs_to_mjcf.py")
 
 
 if __name__ == "__main__":
