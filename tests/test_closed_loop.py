@@ -8,15 +8,13 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+from same_mechanism import assert_same_allocation, assert_same_error_table
 
 from pkmtol import load_mechanism
-from pkmtol.design.job import DesignOptions, allocate
-from pkmtol.error_model.table import error_table
 from pkmtol.exceptions import (
     ClosedLoopError,
     ClosureFrameError,
@@ -33,10 +31,6 @@ from pkmtol.model.sidecar import Sidecar, read_sidecar
 REPO = Path(__file__).resolve().parents[1]
 SEED = REPO / "robots" / "r2rps_ups"
 TREE = REPO / "tests" / "data" / "r2rps_ups_closed"
-RTOL = 1e-9
-SMALL = DesignOptions(
-    parameter_set="urdf", samples=300, verification_poses=20, exact_samples=4, claim_poses=10
-)
 
 
 @pytest.fixture(scope="module")
@@ -59,14 +53,6 @@ def copy_tree(tmp_path: Path, file: str = "", old: str = "", new: str = "") -> P
         assert text.count(old) >= 1, f"{old!r} not in {file}"
         path.write_text(text.replace(old, new), encoding="utf-8")
     return folder
-
-
-def rel(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest difference relative to the largest |a| (inf entries — free tolerances — must match)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    assert np.array_equal(np.isfinite(a), np.isfinite(b))
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-300))
 
 
 # --- the same mechanism, two ways ------------------------------------------------------------
@@ -104,41 +90,19 @@ def test_tree_is_cut_into_the_same_limbs(limbs_mech, tree_mech):
 
 
 def test_error_table_is_the_same(limbs_mech, tree_mech):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # scipy quadrature round-off notes, identical on both sides
-        ta, tb = error_table(limbs_mech, "urdf"), error_table(tree_mech, "urdf")
-    assert len(ta.pset) == len(tb.pset) == 171
-    renamed = {
-        "limb2.limb2_platform_attach": "limb2.closedloop1",
-        "limb3.limb3_platform_attach": "limb3.closedloop2",
-        "limb4.limb4_platform_attach": "limb4.closedloop3",
-    }
-
-    def rename(n: str) -> str:
-        stem, comp = n.rsplit(".", 1)
-        return f"{renamed.get(stem, stem)}.{comp}"
-
-    assert [rename(n) for n in ta.pset.names] == tb.pset.names
-    assert ta.classes == tb.classes
-    assert ta.classes.count("uncompensatable") == 18
-    assert {tb.pset.parameters[i].limb for i, c in enumerate(tb.classes) if c == "uncompensatable"} == {3}
-    assert ta.worst_index == tb.worst_index
-    assert rel(ta.sensitivity, tb.sensitivity) < RTOL
-    assert rel(ta.sensitivity_uncompensated, tb.sensitivity_uncompensated) < RTOL
+    assert_same_error_table(
+        limbs_mech,
+        tree_mech,
+        {
+            "limb2.limb2_platform_attach": "limb2.closedloop1",
+            "limb3.limb3_platform_attach": "limb3.closedloop2",
+            "limb4.limb4_platform_attach": "limb4.closedloop3",
+        },
+    )
 
 
 def test_allocation_is_the_same(limbs_mech, tree_mech):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ra, rb = allocate(limbs_mech, SMALL), allocate(tree_mech, SMALL)
-    np.testing.assert_array_equal(ra.uncompensatable, rb.uncompensatable)
-    assert ra.worst_index == rb.worst_index
-    unc = ra.uncompensatable
-    assert rel(ra.tolerances[unc], rb.tolerances[unc]) < RTOL
-    assert rel(ra.traditional.tolerance, rb.traditional.tolerance) < RTOL
-    for dist in ra.verification:
-        va, vb = ra.verification[dist], rb.verification[dist]
-        assert rel(va.dlam_linear_m, vb.dlam_linear_m) < RTOL
+    assert_same_allocation(limbs_mech, tree_mech)
 
 
 def test_python_api_and_toml_sidecar(tmp_path, tree_mech):
