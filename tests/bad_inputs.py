@@ -29,6 +29,7 @@ from pkmtol import (
     fosm_tolerances,
     load_closed_loop,
     load_mechanism,
+    load_mjcf,
     parameter_set,
     sweep,
     write_outputs,
@@ -318,6 +319,7 @@ CASES: list[Case] = [
     Case("Python API", "`fosm_tolerances` with a `nan` sensitivity", lambda t: fosm_tolerances(np.array([1.0, np.nan]), 5e-5, np.array([2.0])), IA, ("omega", "finite"), {"argument": "omega"}),
     Case("Python API", "`sweep` given points of 2 coordinates", lambda t: sweep(seed_mech(), parameter_set(seed_mech()), np.zeros((4, 2))), IA, ("points_m", "(n, 3)"), {"argument": "points_m"}),
     Case("Python API", "`load_closed_loop` given a number as the sidecar", lambda t: load_closed_loop(REPO / "tests/data/r2rps_ups_closed/robot.urdf", 5, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("sidecar", "file path"), {"argument": "sidecar"}),  # type: ignore[arg-type]
+    Case("Python API", "`load_mjcf` given `None` as the file", lambda t: load_mjcf(None, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("path", "file path"), {"argument": "path"}),  # type: ignore[arg-type]
     Case("Python API", "`write_outputs` given something else than a result", lambda t: write_outputs("result", t / "o"), IA, ("result", "DesignResult")),  # type: ignore[arg-type]
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 from collections.abc import Iterable, Sequence
 from numbers import Integral, Real
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -159,6 +161,17 @@ def strings(name: str, value: Any) -> tuple[str, ...]:
     if bad:
         raise InvalidArgumentError(name, value, f"expected strings only, found {bad[0]!r}")
     return tuple(value)
+
+
+def path(name: str, value: Any, what: str = "a file path (str or pathlib.Path)") -> Path:
+    """``value`` as a :class:`~pathlib.Path` (a ``str`` or path-like); otherwise InvalidArgumentError.
+
+    >>> path("urdf", "robot.urdf")
+    PosixPath('robot.urdf')
+    """
+    if isinstance(value, bool) or not isinstance(value, str | os.PathLike):
+        raise InvalidArgumentError(name, value, f"expected {what}")
+    return Path(value)
 
 
 def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:

@@ -41,13 +41,13 @@ every later stage (kinematics, error model, allocation, viewer) sees serial limb
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import pinocchio as pin
 
-from pkmtol.exceptions import ClosedLoopError, InvalidArgumentError
+import pkmtol.values as values
+from pkmtol.exceptions import ClosedLoopError
 from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader
@@ -82,13 +82,11 @@ def closed_loop_limbs(
         URDFError, MechanismFormatError, ClosedLoopError (and its subclasses): see
         :func:`load_tree`, :func:`read_sidecar`, :func:`cut_tree`.
     """
-    urdf = Path(_path_argument("urdf", urdf))
+    urdf = values.path("urdf", urdf)
     if isinstance(sidecar, Sidecar):
         side = sidecar
     else:
-        side = read_sidecar(
-            default_sidecar(urdf) if sidecar is None else Path(_path_argument("sidecar", sidecar))
-        )
+        side = read_sidecar(default_sidecar(urdf) if sidecar is None else values.path("sidecar", sidecar))
     tree, visual, _ = load_tree(urdf)
     locked = []
     for jname, jtype in side.joint_types.items():
@@ -161,7 +159,7 @@ def load_closed_loop(
         URDFError, MechanismFormatError, ClosedLoopError: bad tree or sidecar (naming the culprit).
         PlatformMismatchError: a loop is not closed at ``home``.
     """
-    urdf = Path(_path_argument("urdf", urdf))
+    urdf = values.path("urdf", urdf)
     limbs, _ = closed_loop_limbs(urdf, sidecar, platform_link, limb_names, home)
     return Mechanism.from_limbs(
         name or urdf.stem,
@@ -173,12 +171,6 @@ def load_closed_loop(
         design_beta,
         description=description,
     )
-
-
-def _path_argument(name: str, value: object) -> str | os.PathLike[str]:
-    if isinstance(value, bool) or not isinstance(value, str | os.PathLike):
-        raise InvalidArgumentError(name, value, "expected a file path (str or pathlib.Path)")
-    return value
 
 
 def limbs_from_toml(folder: Path, r: TomlReader) -> list[Limb]:

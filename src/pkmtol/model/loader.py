@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -11,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, MechanismFormatError
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
 from pkmtol.model import closed_loop, mjcf
 from pkmtol.model.dh import DHTable, check_dh_matches
 from pkmtol.model.drawing import read_drawing
@@ -55,11 +55,7 @@ def load_mechanism(
         PlatformMismatchError: the limbs' platform frames do not coincide at ``home``.
         ClosedLoopError, MJCFError (and subclasses): a tree or MJCF file pkmtol cannot cut into limbs.
     """
-    if isinstance(folder, bool) or not isinstance(folder, str | os.PathLike):
-        raise InvalidArgumentError(
-            "folder", folder, "expected the path of a robot folder, e.g. 'robots/r2rps_ups'"
-        )
-    folder = Path(folder)
+    folder = values.path("folder", folder, "the path of a robot folder, e.g. 'robots/r2rps_ups'")
     path = folder / "mechanism.toml"
     if doc is not None:
         return _from_doc(folder, path, dict(doc), urdf_texts or {}, check_home_closure)

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.exceptions import LostElementError, MJCFError, UnsupportedEqualityError
 from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
@@ -113,7 +114,7 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
         MJCFError (and subclasses): see :mod:`pkmtol.model.mjcf_checks`; also a file Pinocchio cannot
             read, an actuated joint that is not in the file, no actuator, or no weld.
     """
-    path = Path(path)
+    path = values.path("path", path)
     root = read_xml(path)
     check_structure(path, root)
     check_tendons(path, root)
@@ -338,7 +339,7 @@ def load_mjcf(
         MJCFError (and subclasses), ClosedLoopError: see :func:`mjcf_limbs`.
         PlatformMismatchError: a loop is not closed at ``home``.
     """
-    path = Path(path)
+    path = values.path("path", path)
     limbs, _ = mjcf_limbs(path, platform_link, limb_names, home, keyframe, actuated)
     return Mechanism.from_limbs(
         name or path.stem,
