@@ -181,18 +181,13 @@ def limbs_from_toml(folder: Path, r: TomlReader) -> list[Limb]:
     """
     urdf = folder / r.get("closed_loop.urdf", str)
     side = r.get("closed_loop.sidecar", str, default=None)
-    names = r.get("closed_loop.limbs", list, default=None)
-    if names is not None and not all(isinstance(x, str) for x in names):
-        r.fail("closed_loop.limbs", f"expected a list of limb names, got {names!r}")
-    home = r.get("closed_loop.home", dict, default={})
-    for jname, value in home.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            r.fail(f"closed_loop.home.{jname}", f"expected a number (rad or m), got {value!r}")
+    names = r.strings("closed_loop.limbs", default=None, what="limb names")
+    home = r.joint_values("closed_loop.home", default={})
     limbs, _ = closed_loop_limbs(
         urdf,
         None if side is None else folder / side,
         r.get("closed_loop.platform_link", str, default=None),
         names,
-        {k: float(v) for k, v in home.items()},
+        home,
     )
     return limbs

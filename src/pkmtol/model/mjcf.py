@@ -361,14 +361,9 @@ def limbs_from_toml(folder: Path, r: TomlReader) -> list[Limb]:
     ``keyframe`` (a ``<key>`` of the file), ``actuated`` (joint names).
     """
     path = folder / r.get("mjcf.file", str)
-    names = _strings(r, "mjcf.limbs")
-    actuated = _strings(r, "mjcf.actuated")
-    home = r.get("mjcf.home", dict, default=None)
-    if home is not None:
-        for jname, value in home.items():
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                r.fail(f"mjcf.home.{jname}", f"expected a number (rad or m), got {value!r}")
-        home = {k: float(v) for k, v in home.items()}
+    names = r.strings("mjcf.limbs", default=None, what="names")
+    actuated = r.strings("mjcf.actuated", default=None, what="names")
+    home = r.joint_values("mjcf.home", default=None)
     keyframe = r.get("mjcf.keyframe", str, default=None)
     if home is not None and keyframe is not None:
         r.fail("mjcf", "give either 'home' (joint values) or 'keyframe' (a <key> of the file), not both")
@@ -376,10 +371,3 @@ def limbs_from_toml(folder: Path, r: TomlReader) -> list[Limb]:
         path, r.get("mjcf.platform_link", str, default=None), names, home, keyframe, actuated
     )
     return limbs
-
-
-def _strings(r: TomlReader, key: str) -> list[str] | None:
-    value = r.get(key, list, default=None)
-    if value is not None and not all(isinstance(x, str) for x in value):
-        r.fail(key, f"expected a list of names, got {value!r}")
-    return value

@@ -206,12 +206,22 @@ class TomlReader:
             self.fail(key, f"expected a list of {n} numbers, got {v!r}")
         return arr
 
-    def strings(self, key: str, default: Any = _MISSING) -> list[str]:
-        """Read a list of strings; fail naming ``key`` if an entry is not a string."""
+    def strings(self, key: str, default: Any = _MISSING, what: str = "strings") -> list[str]:
+        """Read a list of strings; fail naming ``key`` (and ``what`` they are) if an entry is not one."""
         v = self.get(key, list, default)
         if v is not None and not all(isinstance(x, str) for x in v):
-            self.fail(key, f"expected a list of strings, got {v!r}")
+            self.fail(key, f"expected a list of {what}, got {v!r}")
         return v  # type: ignore[no-any-return]
+
+    def joint_values(self, key: str, default: Any = _MISSING) -> dict[str, float] | None:
+        """Read a table joint name → value [rad or m]; fail naming ``key.<joint>`` at a non-number."""
+        table = self.get(key, dict, default)
+        if table is None:
+            return None
+        for jname, value in table.items():
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                self.fail(f"{key}.{jname}", f"expected a number (rad or m), got {value!r}")
+        return {k: float(v) for k, v in table.items()}
 
 
 def _has_non_number(value: Any) -> bool:
