@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from loop_robots import ROOT, delta_script, delta_variant, merged, slider_crank_variant
+from truth_checks import compensatable_residual_ratios, linear_mismatches
 
 from pkmtol.error_model.limb_motion import loop_motion, raw_rows_many, to_k_prime_many
 from pkmtol.error_model.parameters import parameter_set
@@ -46,10 +47,6 @@ def variants(tmp_path_factory):
     }
 
 
-def _relative(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.linalg.norm(a - b) / np.linalg.norm(a))
-
-
 # --- the truth test on mechanisms with loops inside limbs ----------------------------------------
 
 
@@ -70,15 +67,7 @@ def test_truth_test_on_loops_inside_limbs(variants, name):
         pose = chain.inverse(p, q)
         sep = separate(mech, ps, chain, pose)
         eta0 = rng.normal(0.0, 1.0, len(ps))
-        u = pose.q_all[chain.actuated_idx]
-        rel = []
-        for size in (1e-5, 1e-6):
-            eta = eta0 * size
-            eps, offsets = ps.perturbation(eta, mech)
-            pert = ClosedChain(mech, perturbed_limb_models(mech, eps), check_limits=False)
-            t1 = pose_error_twist(pose.oMp, pert.forward(u, pose.q_all, offsets).oMp)
-            t2 = pose_error_twist(pose.oMp, pert.forward(u + sep.correction @ eta, pose.q_all, offsets).oMp)
-            rel.append((_relative(t1, sep.twist_map @ eta), _relative(t2, sep.uncompensated_map @ eta)))
+        rel = [linear_mismatches(mech, ps, chain, pose, sep, eta0 * size) for size in (1e-5, 1e-6)]
         worst = max(worst, *rel[1])
         assert rel[0][0] / rel[1][0] == pytest.approx(10.0, rel=0.1)
         assert rel[0][1] / rel[1][1] == pytest.approx(10.0, rel=0.1)
@@ -88,8 +77,6 @@ def test_truth_test_on_loops_inside_limbs(variants, name):
 @pytest.mark.parametrize("name", ["delta", "slider_crank"])
 def test_compensatable_errors_vanish_after_eq25(variants, name):
     """Truth test step 3: only compensatable errors, corrected: ≤ 1e-3 of the uncorrected pose error."""
-    from truth_checks import compensatable_residual_ratios
-
     mech = load_mechanism(variants[name])
     ps = parameter_set(mech, "urdf")
     chain = ClosedChain(mech)

@@ -30,3 +30,23 @@ def compensatable_residual_ratios(mech, chain, ps, classes, points, rng) -> list
         t_cor = pose_error_twist(pose.oMp, pert.forward(u + sep.correction @ eta, pose.q_all, offsets).oMp)
         ratios.append(float(np.linalg.norm(t_cor) / np.linalg.norm(t_raw)))
     return ratios
+
+
+def relative(a: np.ndarray, b: np.ndarray) -> float:
+    """‖a − b‖ / ‖a‖: the mismatch of a linear prediction ``b`` of the exact ``a``."""
+    return float(np.linalg.norm(a - b) / np.linalg.norm(a))
+
+
+def linear_mismatches(mech, ps, chain, pose, sep, eta, q_start=None) -> tuple[float, float]:
+    """Truth test steps 1 and 2 at one pose: the relative mismatch of ``twist_map η`` against the exact
+    pose error with the actuators at nominal, and of ``uncompensated_map η`` against it after Eq. 25.
+
+    The mechanism perturbed by ``eta`` is solved exactly from ``q_start`` (default: the pose's joints).
+    """
+    q0 = pose.q_all if q_start is None else q_start
+    eps, offsets = ps.perturbation(eta, mech)
+    pert = ClosedChain(mech, perturbed_limb_models(mech, eps), check_limits=False)
+    u = pose.q_all[chain.actuated_idx]
+    t1 = pose_error_twist(pose.oMp, pert.forward(u, q0, offsets).oMp)
+    t2 = pose_error_twist(pose.oMp, pert.forward(u + sep.correction @ eta, q0, offsets).oMp)
+    return relative(t1, sep.twist_map @ eta), relative(t2, sep.uncompensated_map @ eta)
