@@ -156,6 +156,25 @@ def test_noise_alone_above_the_target_is_a_named_error(mech):
     assert err.value.floor > err.value.target == pytest.approx(5e-5)
 
 
+def test_noise_alone_above_the_orientation_target_is_a_named_error(mech):
+    quiet = CalibrationSettings(poses=15, candidates=20, noise_m=1e-5)  # meets Δλ*, not a 1 nrad tilt
+    with pytest.raises(NoiseFloorError, match="on the tilt of the tool axis") as err:
+        allocate(
+            mech,
+            DesignOptions(
+                compensation="calibrated",
+                calibration=quiet,
+                orientation_target_rad=1e-9,
+                samples=200,
+                exact_samples=0,
+                verification_poses=50,
+                claim_poses=10,
+            ),
+        )
+    assert err.value.floor > err.value.target == pytest.approx(1e-9)
+    assert "µrad" in str(err.value)
+
+
 def test_no_uncompensatable_urdf_error_is_left_free(mech):
     r = allocate(
         mech,

@@ -8,6 +8,7 @@ kinematics on a subsample); the traditional method (all errors, no compensation)
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -356,36 +357,24 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     noise_var = 0.0
     if maps.position_noise.shape[2]:
         noise_var = float(maps.noise_m**2 * np.sum(maps.position_noise[worst] ** 2))
-    tol = np.full((n_par, len(betas)), np.nan)
-    tol[unc] = fosm_tolerances(omega, target, np.array(betas), noise_var)
     design_col = int(np.argmin(np.abs(np.asarray(betas) - design_beta)))
-    if unc.size and np.isnan(tol[unc[0], design_col]):
-        assert setup.plan is not None
-        raise NoiseFloorError(
-            setup.plan.settings.noise_m,
-            setup.plan.poses,
-            noise_floor_m(design_beta, noise_var),
-            target,
-            design_beta,
-        )
+    floor = functools.partial(  # the position's and the tilt's tolerances, each above its noise floor
+        _fosm_above_floor,
+        n_par=n_par,
+        unc=unc,
+        betas=betas,
+        design_col=design_col,
+        design_beta=design_beta,
+        plan=setup.plan,
+    )
+    tol = floor(omega, target, noise_var, "Δλ at P")
     orientation = None
     if alpha_target is not None:
         w_a = tilt_worst_pose(maps, unc, axis)
         tilt_map, tilt_noise = maps.tilt_maps(axis)
         om_a, fb_a = _allocation_sensitivity(tilt_map, unc, w_a)
         tn_var = float(maps.noise_m**2 * np.sum(tilt_noise[w_a] ** 2)) if tilt_noise.shape[2] else 0.0
-        tol_a = np.full((n_par, len(betas)), np.nan)
-        tol_a[unc] = fosm_tolerances(om_a, alpha_target, np.array(betas), tn_var)
-        if unc.size and np.isnan(tol_a[unc[0], design_col]):
-            assert setup.plan is not None
-            raise NoiseFloorError(
-                setup.plan.settings.noise_m,
-                setup.plan.poses,
-                noise_floor_m(design_beta, tn_var),
-                alpha_target,
-                design_beta,
-                what="the tilt of the tool axis",
-            )
+        tol_a = floor(om_a, alpha_target, tn_var, "the tilt of the tool axis")
         binding = np.zeros(n_par, dtype=bool)
         binding[unc] = tol_a[unc, design_col] < tol[unc, design_col]
         tol[unc] = np.fmin(tol[unc], tol_a[unc])
@@ -545,6 +534,33 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         orientation=od,
         drawing=opt.drawing or mechanism.extra.get("drawing") or DrawingSettings(),
     )
+
+
+def _fosm_above_floor(
+    omega: np.ndarray,
+    target: float,
+    noise_var: float,
+    what: str,
+    *,
+    n_par: int,
+    unc: np.ndarray,
+    betas: tuple[float, ...],
+    design_col: int,
+    design_beta: float,
+    plan: CalibrationPlan | None,
+) -> np.ndarray:
+    """FOSM tolerances (n_par, len(betas)) of the columns ``unc`` (NaN elsewhere) against ``target``.
+
+    The noise enters as the fixed variance ``noise_var``; when it alone misses the target at the
+    design β, NoiseFloorError names ``what``.
+    """
+    tol = np.full((n_par, len(betas)), np.nan)
+    tol[unc] = fosm_tolerances(omega, target, np.array(betas), noise_var)
+    if unc.size and np.isnan(tol[unc[0], design_col]):
+        assert plan is not None  # only a calibration's noise has a floor
+        floor = noise_floor_m(design_beta, noise_var)
+        raise NoiseFloorError(plan.settings.noise_m, plan.poses, floor, target, design_beta, what)
+    return tol
 
 
 def _tilt_sens(maps: AccuracyMaps, unc: np.ndarray, axis: np.ndarray, n: int) -> np.ndarray:
