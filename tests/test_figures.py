@@ -18,8 +18,8 @@ from pkmtol.present.figures import (  # noqa: E402
     HISTOGRAM_BINS,
     histogram_figure,
     label_name,
+    render_figures,
     sensitivity_figure,
-    tex_name,
     tolerance_figure,
     write_figures,
 )
@@ -120,6 +120,35 @@ def test_missing_matplotlib_is_actionable(monkeypatch, result):
         sensitivity_figure(result)
 
 
-def test_tex_name():
-    assert tex_name("δθ_{1,4}") == r"$\delta \theta _{1,4}$"
-    assert tex_name("limb1.limb1_u1.dx") == "limb1.limb1_u1.dx"
+def test_labels_are_plain_text():
+    assert label_name("δθ_{1,4}") == "δθ₁,₄"
+    assert label_name("δd_{a,4}") == "δdₐ,₄"
+    assert label_name("limb1.limb1_u1.dx") == "limb1.limb1_u1.dx"
+    assert label_name("a$b$_{1,2}") == r"a\$b\$₁,₂"  # a $ is never read as math
+
+
+def test_figures_typeset_no_mathtext(monkeypatch, result):
+    """Every label, the log axis's included, is plain text: mathtext is most of a label's cost."""
+    from matplotlib.mathtext import MathTextParser
+
+    def refuse(self, s, *args, **kwargs):
+        raise AssertionError(f"mathtext typeset: {s!r}")
+
+    monkeypatch.setattr(MathTextParser, "parse", refuse)
+    rendered = render_figures(result)
+    assert len(rendered) == 2 * len(FIGURES)
+    ticks = [t.get_text() for t in tolerance_figure(result).axes[0].get_yticklabels()]
+    assert any(t.startswith("10") for t in ticks)
+
+
+def test_each_figure_is_laid_out_once_and_reproducible(monkeypatch, result):
+    """The second format reuses the first one's layout (one draw, no second layout pass)."""
+    from matplotlib.figure import Figure
+
+    draws = []
+    original = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda fig, renderer: (draws.append(fig), original(fig, renderer))[1])
+    first = render_figures(result)
+    # per figure: the layout pass and the drawing of the first format, one drawing of the second
+    assert len(draws) == 3 * len(FIGURES)
+    assert render_figures(result) == first  # byte for byte, SVG ids included

@@ -40,13 +40,15 @@ def render(fig: Any, fmt: str, dpi: int) -> bytes:
 
     SVG keeps its text as text (``svg.fonttype: none``: smaller, searchable, and no glyph-to-path
     conversion); PNG is written with zlib level 1 (the same pixels, faster). After the first
-    rendering the figure's layout is frozen, so that its other formats reuse it instead of solving
-    the constrained layout again.
+    rendering the figure's layout engine is removed, not only frozen: with any engine set (even
+    the placeholder ``"none"`` leaves), matplotlib draws the whole figure once more, without
+    output, before each further format. The axes keep the positions the constrained layout gave
+    them.
     """
     from matplotlib import rc_context
 
     buf = io.BytesIO()
-    with rc_context({"svg.fonttype": "none"}):
+    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "pkmtol"}):
         fig.savefig(
             buf,
             format=fmt,
@@ -54,5 +56,6 @@ def render(fig: Any, fmt: str, dpi: int) -> bytes:
             metadata={"Software": None} if fmt == "png" else {"Date": None, "Creator": None},
             **({"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}),
         )
-    fig.set_layout_engine("none")
+    with rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+        fig.set_layout_engine(None)  # None under these settings: no engine at all
     return buf.getvalue()
