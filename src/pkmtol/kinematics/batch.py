@@ -308,21 +308,28 @@ class BatchChain:
         The loop frames of a limb are, per loop, ``(oMa, oMb, J_a, J_b)`` stacked over problems ``idx``.
         """
         placements, jacobians, loop_frames = [], [], []
+        # the per-pose loop is the solver's hot spot: Pinocchio's functions bound once, each limb's
+        # joint values sliced once (rows of a contiguous copy), the pose's model picked up front
+        joint_jacobians, frame_placement = pin.computeJointJacobians, pin.updateFramePlacement
+        frame_jacobian, local = pin.getFrameJacobian, pin.LOCAL
         for i, (model, data, fid, cols, limb) in enumerate(
             zip(self.models, self.datas, self.fids, self._cols, self.mechanism.limbs, strict=True)
         ):
-            models = perturbation[i][0] if perturbation is not None else None
+            q_limb = q[idx, cols]
+            if perturbation is None:
+                models = [model] * len(idx)
+            else:
+                models = [perturbation[i][0][k] for k in idx]
             hs, js = [], []
             lf: list[list[np.ndarray]] = [[] for _ in range(4 * len(limb.loops))]
-            for k in idx:
-                m = model if models is None else models[k]
-                pin.computeJointJacobians(m, data, q[k, cols])
-                hs.append(pin.updateFramePlacement(m, data, fid).homogeneous)
-                js.append(pin.getFrameJacobian(m, data, fid, pin.LOCAL))
+            for m, qk in zip(models, q_limb, strict=True):
+                joint_jacobians(m, data, qk)
+                hs.append(frame_placement(m, data, fid).homogeneous)
+                js.append(frame_jacobian(m, data, fid, local))
                 for n, lp in enumerate(limb.loops):
                     for side, f in enumerate((lp.frame_a, lp.frame_b)):
-                        lf[4 * n + side].append(pin.updateFramePlacement(m, data, f).homogeneous)
-                        lf[4 * n + 2 + side].append(pin.getFrameJacobian(m, data, f, pin.LOCAL))
+                        lf[4 * n + side].append(frame_placement(m, data, f).homogeneous)
+                        lf[4 * n + 2 + side].append(frame_jacobian(m, data, f, local))
             h, jac = np.array(hs), np.array(js)
             attach = perturbation[i][1] if perturbation is not None else None
             if attach is not None:
