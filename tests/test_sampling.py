@@ -8,11 +8,14 @@ import numpy as np
 import pytest
 
 import pkmtol.design.exact as exact_mod
+import pkmtol.design.mode_verification as mode_verification
 import pkmtol.design.pose_search as pose_search
 import pkmtol.design.verification as verification
 from pkmtol.design.exact import claimed_vs_true
+from pkmtol.design.mode_verification import verify_mode
 from pkmtol.design.pose_search import search_sensitive_pose
-from pkmtol.design.verification import verify_all
+from pkmtol.design.verification import sample_errors, verify_all
+from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import parameter_set
 from pkmtol.error_model.sweep import sweep
 from pkmtol.model.loader import load_mechanism
@@ -70,3 +73,88 @@ def test_chunked_pose_search_agrees_with_one_draw(seed_maps, monkeypatch):
     assert chunked.worst_index == one.worst_index
     # the sampled σ agrees with the analytic one to sampling error
     assert np.abs(chunked.sigma_sampled_m / chunked.sigma_analytic_m - 1).max() < 0.05
+
+
+def _mode_maps(m=13, n=9, M=4, seed=0):
+    g = np.random.default_rng(seed)
+    rot = np.array([np.linalg.qr(g.standard_normal((3, 3)))[0] for _ in range(m)])
+    return AccuracyMaps(
+        mode="calibrated",
+        position=g.standard_normal((m, 3, n)),
+        rotation=g.standard_normal((m, 3, n)),
+        position_noise=g.standard_normal((m, 3, M)),
+        rotation_noise=g.standard_normal((m, 3, M)),
+        noise_m=1e-5,
+        rotations=rot,
+    )
+
+
+def _one_piece(maps, n, columns, sigma, bg, dist, samples, rng, axis):
+    """The linear draw of verify_mode as one piece (what it did before it was chunked)."""
+    at = np.arange(samples) % len(maps)
+    delta = np.zeros((samples, n))
+    delta[:, columns] = sample_errors(dist, np.where(np.isfinite(sigma), sigma, 0.0), samples, rng)
+    delta[:, bg[0]] = rng.standard_normal((samples, len(bg[0]))) * bg[1]
+    noise = rng.standard_normal((samples, maps.position_noise.shape[2])) * maps.noise_m
+    e = np.einsum("sin,sn->si", maps.position[at], delta) + np.einsum(
+        "siM,sM->si", maps.position_noise[at], noise
+    )
+    tmap, tnoise = maps.tilt_maps(axis)
+    t = np.einsum("sin,sn->si", tmap[at], delta) + np.einsum("siM,sM->si", tnoise[at], noise)
+    return np.linalg.norm(e, axis=1), np.linalg.norm(t, axis=1), delta, noise
+
+
+@pytest.mark.parametrize("dist", ["gaussian", "uniform_sigma"])
+def test_chunked_mode_verification_is_bit_identical(monkeypatch, dist):
+    """verify_mode (calibrated, none, and any mode with the tilt) in chunks: the one-piece numbers."""
+    maps = _mode_maps()
+    n, columns, bg = 9, np.array([0, 2, 3, 7]), (np.array([1, 5]), np.array([3e-6, 4e-6]))
+    sigma = np.array([2e-5, np.inf, 1e-5, 3e-5])
+    axis = np.array([0.0, 0.2, 1.0])
+    monkeypatch.setattr(mode_verification, "MODE_CHUNK", 777)
+    seen = {}
+
+    def exact(k, delta, noise):
+        seen[len(seen)] = (k, delta.copy(), noise.copy())
+        return None
+
+    rng_one, rng = np.random.default_rng(5), np.random.default_rng(5)
+    dlam, tilt, delta, noise = _one_piece(maps, n, columns, sigma, bg, dist, 5000, rng_one, axis)
+    ver = verify_mode(
+        maps, np.zeros((13, 3)), n, columns, sigma, 5e-5, dist, 5000, 1600, rng, exact,
+        background=bg, orientation=(axis, 1e-4),
+    )  # fmt: skip
+    np.testing.assert_array_equal(ver.dlam_linear_m, dlam)
+    np.testing.assert_array_equal(ver.tilt_linear_rad, tilt)
+    assert rng.random() == rng_one.random()  # the generator ends where the one-piece draws left it
+    # the exact subsample (over two chunks) gets the same draws as in one piece
+    assert len(seen) == 1600
+    for s in (0, 776, 777, 1599):
+        k, d, e = seen[s]
+        assert k == s % 13
+        np.testing.assert_array_equal(d, delta[s])
+        np.testing.assert_array_equal(e, noise[s])
+
+
+def test_mode_verification_memory_does_not_grow_with_samples(monkeypatch):
+    """Peak traced memory at 8 chunks' worth of samples is that of one chunk plus Δλ and Δα."""
+    import tracemalloc
+
+    maps = _mode_maps(m=50, n=60, M=12)
+    columns, sigma = np.arange(0, 60, 2), np.full(30, 1e-5)
+    monkeypatch.setattr(mode_verification, "MODE_CHUNK", 4000)
+
+    def peak(samples):
+        tracemalloc.start()
+        verify_mode(
+            maps, np.zeros((50, 3)), 60, columns, sigma, 5e-5, "gaussian", samples, 0,
+            np.random.default_rng(1), None, orientation=(np.array([0.0, 0.0, 1.0]), 1e-4),
+        )  # fmt: skip
+        top = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return top
+
+    small, large = peak(4000), peak(32_000)
+    kept = 2 * 8 * (32_000 - 4000)  # Δλ and Δα of the extra samples
+    # one piece, the gathered maps alone would add 2 × 24 bytes × 60 parameters per extra sample
+    assert large - small < 2 * kept, (small, large)

@@ -2,12 +2,15 @@
 
 The main job holds, besides the mechanism, the error model at every grid and verification pose
 (about :data:`BYTES_PER_POSE_PARAMETER` bytes per pose and error parameter) and, per Monte Carlo
-sample, the error draws, the gathered maps and the kept Δλ and points (about
-``32 k + 150`` bytes for ``k`` uncompensatable errors; :data:`BYTES_PER_SAMPLE_ERROR`,
-:data:`BYTES_PER_SAMPLE`). Measured on the seed robot (peak RSS; dh set, k = 14): 100,000 samples
-179 MB, 400,000 samples 322 MB (477 bytes per sample against the 598 estimated); 6,000 more
-verification poses 273 MB (420 bytes per pose and parameter). When the Monte Carlo is chunked,
-these per-sample terms are what changes.
+sample, the kept Δλ and Δα of each distribution (:data:`BYTES_PER_SAMPLE`). The samples are drawn
+and evaluated in chunks, so the draws and the gathered maps take a fixed working set, at most
+:data:`CHUNK_BYTES_PER_PARAMETER` bytes per error parameter (a chunk of
+:data:`~pkmtol.design.mode_verification.MODE_CHUNK` samples: the position and tilt maps gathered
+per sample, the parameter draws and the products). Measured on the seed robot (peak RSS, dh set,
+n = 108, ``pkmtol allocate --no-figures``): 100,000 samples 291 MB and 1,000,000 samples 319 MB
+(31 bytes per sample) in the ideal mode; 1,000,000 samples 405 MB in the ``none`` mode and 366 MB
+with an orientation target. The estimate for 1,000,000 is 467 MB. 6,000 more verification poses:
+273 MB (420 bytes per pose and parameter).
 
 :func:`check_memory` refuses a request whose estimate exceeds :data:`MEMORY_FRACTION` of the
 memory available, with :class:`~pkmtol.exceptions.ResourceLimitError` naming the option that
@@ -22,15 +25,16 @@ from typing import Any
 
 import numpy as np
 
+from pkmtol.design.mode_verification import MODE_CHUNK
 from pkmtol.error_model.parameters import default_set, parameter_set
 from pkmtol.error_model.sweep import sweep
 from pkmtol.exceptions import ResourceLimitError
 from pkmtol.model.mechanism import Mechanism
 
-#: Bytes per Monte Carlo sample and uncompensatable error (draws, gathered maps).
-BYTES_PER_SAMPLE_ERROR = 32
-#: Bytes per Monte Carlo sample besides (Δλ, points, kept per distribution).
-BYTES_PER_SAMPLE = 150
+#: Bytes kept per Monte Carlo sample: Δλ and Δα of each of the three distributions, with a margin.
+BYTES_PER_SAMPLE = 64
+#: Bytes of a chunk's working set per error parameter (7 doubles per sample and parameter).
+CHUNK_BYTES_PER_PARAMETER = 7 * 8 * MODE_CHUNK
 #: Bytes per pose (grid or verification) and error parameter (the separation at the pose).
 BYTES_PER_POSE_PARAMETER = 450
 #: Fixed part (Python, Pinocchio, numpy, the mechanism).
@@ -77,7 +81,8 @@ def estimate_memory(mechanism: Mechanism, options: Any) -> MemoryEstimate:
     samples = int(options.samples)
     poses = len(grid) + min(int(options.verification_poses), samples)
     return MemoryEstimate(
-        samples_bytes=float(samples) * (BYTES_PER_SAMPLE_ERROR * k + BYTES_PER_SAMPLE),
+        samples_bytes=float(samples) * BYTES_PER_SAMPLE
+        + min(samples, MODE_CHUNK) / MODE_CHUNK * CHUNK_BYTES_PER_PARAMETER * n,
         poses_bytes=float(poses) * BYTES_PER_POSE_PARAMETER * n,
         base_bytes=BASE_BYTES,
         uncompensatable=k,
@@ -121,8 +126,8 @@ def check_memory(mechanism: Mechanism, options: Any, available_bytes: float | No
     if avail is None or est.total_bytes <= MEMORY_FRACTION * avail:
         return est
     if est.samples_bytes >= est.poses_bytes:
-        per = BYTES_PER_SAMPLE_ERROR * est.uncompensatable + BYTES_PER_SAMPLE
-        fits = max(int((MEMORY_FRACTION * avail - est.poses_bytes - est.base_bytes) / per), 0)
+        room = MEMORY_FRACTION * avail - est.poses_bytes - est.base_bytes
+        fits = max(int((room - CHUNK_BYTES_PER_PARAMETER * est.parameters) / BYTES_PER_SAMPLE), 0)
         raise ResourceLimitError(
             "samples",
             options.samples,

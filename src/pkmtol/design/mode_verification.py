@@ -6,11 +6,19 @@ manufacturing σ, and the tracker noise Gaussian at σ_m; Δλ = ‖e‖ and Δ�
 mode's maps. The exact subsample solves the same draws on exact kinematics: ``ideal`` commands
 the Eq. 25 correction, ``none`` the nominal commands, ``calibrated`` simulates the whole
 calibration (measure, identify, compensate by the identified model's inverse kinematics).
+
+The linear samples are drawn and evaluated in chunks of :data:`MODE_CHUNK`, so the working memory
+does not grow with the sample count: only Δλ and Δα (8 bytes a sample each) are kept. Each of the
+three draws (toleranced errors, background errors, noise) keeps the stream it had as one draw of
+all the samples: its chunks come from a copy of the generator taken where that draw starts, found
+by drawing (and dropping) the earlier draws first. The results are those of the one-piece draw,
+bit for bit, and the generator ends where the one-piece draw left it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import copy
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -28,6 +36,9 @@ from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
+
+#: Linear samples per chunk: the gathered maps of a chunk take 24 bytes per sample and parameter.
+MODE_CHUNK = 16_384
 
 #: ``(pose index, full parameter vector, noise) → (P error (3,), rotation (3,))`` or None (unassembled).
 ExactError = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray] | None]
@@ -108,25 +119,49 @@ def verify_mode(
         progress: Progress bar over the exact subsample.
     """
     m = len(maps)
-    point_of = np.arange(samples) % m
-    eta = sample_errors(distribution, np.where(np.isfinite(sigma), sigma, 0.0), samples, rng)
-    delta = np.zeros((samples, n_params))
-    delta[:, columns] = eta
-    if background is not None and len(background[0]):
-        delta[:, background[0]] = rng.standard_normal((samples, len(background[0]))) * background[1]
+    sig = np.where(np.isfinite(sigma), sigma, 0.0)
     M = maps.position_noise.shape[2]
-    noise = rng.standard_normal((samples, M)) * maps.noise_m if M else np.zeros((samples, 0))
-    e = np.einsum("sin,sn->si", maps.position[point_of], delta)
-    if M:
-        e += np.einsum("siM,sM->si", maps.position_noise[point_of], noise)
-    dlam = np.linalg.norm(e, axis=1)
-    tilt = None
+    bg_cols, bg_sigma = background if background is not None else (np.zeros(0, dtype=int), np.zeros(0))
+
+    def draw_eta(count: int, g: np.random.Generator) -> np.ndarray:
+        return sample_errors(distribution, sig, count, g)
+
+    def draw_background(count: int, g: np.random.Generator) -> np.ndarray:
+        return g.standard_normal((count, len(bg_cols))) * bg_sigma
+
+    def draw_noise(count: int, g: np.random.Generator) -> np.ndarray:
+        return g.standard_normal((count, M)) * maps.noise_m
+
+    draws = [draw_eta] + ([draw_background] if len(bg_cols) else []) + ([draw_noise] if M else [])
+    streams = _stream_starts(rng, draws, samples)
+    tmap = tnoise = None
     if orientation is not None:
         tmap, tnoise = maps.tilt_maps(orientation[0])
-        t = np.einsum("sin,sn->si", tmap[point_of], delta)
+    dlam = np.empty(samples)
+    tilt = np.empty(samples) if orientation is not None else None
+    head = min(exact_samples, samples) if exact is not None else 0
+    delta_head, noise_head = np.zeros((head, n_params)), np.zeros((head, M))
+    for start in range(0, samples, MODE_CHUNK):
+        count = min(MODE_CHUNK, samples - start)
+        rows = slice(start, start + count)
+        at = np.arange(start, start + count) % m
+        delta = np.zeros((count, n_params))
+        delta[:, columns] = draw_eta(count, streams[0])
+        if len(bg_cols):
+            delta[:, bg_cols] = draw_background(count, streams[1])
+        noise = draw_noise(count, streams[-1]) if M else np.zeros((count, 0))
+        e = np.einsum("sin,sn->si", maps.position[at], delta)
         if M:
-            t += np.einsum("siM,sM->si", tnoise[point_of], noise)
-        tilt = np.linalg.norm(t, axis=1)
+            e += np.einsum("siM,sM->si", maps.position_noise[at], noise)
+        dlam[rows] = np.linalg.norm(e, axis=1)
+        if tilt is not None and tmap is not None and tnoise is not None:
+            t = np.einsum("sin,sn->si", tmap[at], delta)
+            if M:
+                t += np.einsum("siM,sM->si", tnoise[at], noise)
+            tilt[rows] = np.linalg.norm(t, axis=1)
+        if start < head:
+            delta_head[start : start + count] = delta[: head - start]
+            noise_head[start : start + count] = noise[: head - start]
     exact_stats = lin_sub = tilt_exact_stats = None
     max_diff = float("nan")
     unassembled = 0
@@ -138,13 +173,13 @@ def verify_mode(
         for s in tqdm(
             range(k), desc=f"exact {distribution}", unit="sample", disable=not progress, leave=False
         ):
-            got = exact(int(point_of[s]), delta[s], noise[s])
+            got = exact(s % m, delta_head[s], noise_head[s])
             if got is None:
                 continue
             dp, th = got
             dl_exact[s] = float(np.linalg.norm(dp))
             if axis is not None:
-                rk = maps.rotations[point_of[s]]
+                rk = maps.rotations[s % m]
                 pe = PoseErrors(dp[None], th[None], np.ones(1, dtype=bool))
                 tl_exact[s] = float(pe.tilt_rad(axis, rk[None])[0])
         ok = np.isfinite(dl_exact)
@@ -175,3 +210,21 @@ def verify_mode(
         tilt_exact=tilt_exact_stats,
         joint=joint,
     )
+
+
+def _stream_starts(
+    rng: np.random.Generator, draws: Sequence[Callable[[int, np.random.Generator], np.ndarray]], samples: int
+) -> list[np.random.Generator]:
+    """A generator for each draw, at the start of its stream in the one-piece order of the draws.
+
+    The one-piece code draws all samples of ``draws[0]``, then of ``draws[1]``, and so on. Each
+    but the last gets a copy of ``rng`` taken where its draw starts, and ``rng`` is then advanced
+    over that draw in chunks (the values dropped); the last draw uses ``rng`` itself, which so ends
+    where the one-piece draws leave it.
+    """
+    starts = []
+    for draw in draws[:-1]:
+        starts.append(copy.deepcopy(rng))
+        for start in range(0, samples, MODE_CHUNK):
+            draw(min(MODE_CHUNK, samples - start), rng)
+    return [*starts, rng]
