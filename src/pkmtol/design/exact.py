@@ -21,7 +21,7 @@ import numpy as np
 from scipy import special
 
 from pkmtol.design.reliability import exact_reliability_many
-from pkmtol.design.verification import LINEAR_CHUNK, failure_counts, sample_errors
+from pkmtol.design.verification import LINEAR_CHUNK, cyclic_products, failure_counts, sample_errors
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.executor import Executor, map_chunks
 
@@ -260,7 +260,6 @@ def claimed_vs_true(
         extra_cov_task: Fixed covariance (m, 3, 3) at the task-space poses [m²].
         executor: Where the exact reliabilities run, one chunk per β (None: serial).
     """
-    m = J_task.shape[0]
     ew = None if extra_cov_worst is None else extra_cov_worst[None]
     noisy = extra_cov_worst is not None or extra_cov_task is not None
     # with noise draws after each cell's errors, a cell is one chunk (the stream of one draw)
@@ -278,8 +277,7 @@ def claimed_vs_true(
                 count = min(chunk, samples - start)
                 eta = sample_errors(dist, s, count, rng)
                 e_w = eta @ J_worst.T
-                idx = np.arange(start, start + count) % m
-                e_t = np.einsum("sij,sj->si", J_task[idx], eta)
+                e_t = cyclic_products(J_task, eta, start)
                 if extra_cov_worst is not None:
                     e_w = e_w + _noise_draws(extra_cov_worst, count, rng)
                 if extra_cov_task is not None:

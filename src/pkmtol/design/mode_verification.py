@@ -11,8 +11,9 @@ The linear samples are drawn and evaluated in chunks of :data:`MODE_CHUNK`, so t
 does not grow with the sample count: only Δλ and Δα (8 bytes a sample each) are kept. Each of the
 three draws (toleranced errors, background errors, noise) keeps the stream it had as one draw of
 all the samples: its chunks come from a copy of the generator taken where that draw starts, found
-by drawing (and dropping) the earlier draws first. The results are those of the one-piece draw,
-bit for bit, and the generator ends where the one-piece draw left it.
+by drawing (and dropping) the earlier draws first. So every sample gets the values it got from the
+one-piece draw, and the generator ends where the one-piece draw left it; Δλ and Δα agree with the
+one-piece products to round-off (:func:`pkmtol.design.verification.cyclic_products`).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import PoseMaps
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.study import calibrate_and_evaluate
-from pkmtol.design.verification import Verification, failure_stats, sample_errors
+from pkmtol.design.verification import Verification, cyclic_products, failure_stats, sample_errors
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
@@ -144,20 +145,19 @@ def verify_mode(
     for start in range(0, samples, MODE_CHUNK):
         count = min(MODE_CHUNK, samples - start)
         rows = slice(start, start + count)
-        at = np.arange(start, start + count) % m
         delta = np.zeros((count, n_params))
         delta[:, columns] = draw_eta(count, streams[0])
         if len(bg_cols):
             delta[:, bg_cols] = draw_background(count, streams[1])
         noise = draw_noise(count, streams[-1]) if M else np.zeros((count, 0))
-        e = np.einsum("sin,sn->si", maps.position[at], delta)
+        e = cyclic_products(maps.position, delta, start)
         if M:
-            e += np.einsum("siM,sM->si", maps.position_noise[at], noise)
+            e += cyclic_products(maps.position_noise, noise, start)
         dlam[rows] = np.linalg.norm(e, axis=1)
         if tilt is not None and tmap is not None and tnoise is not None:
-            t = np.einsum("sin,sn->si", tmap[at], delta)
+            t = cyclic_products(tmap, delta, start)
             if M:
-                t += np.einsum("siM,sM->si", tnoise[at], noise)
+                t += cyclic_products(tnoise, noise, start)
             tilt[rows] = np.linalg.norm(t, axis=1)
         if start < head:
             delta_head[start : start + count] = delta[: head - start]

@@ -13,10 +13,11 @@ the perturbed mechanism with the Eq. 25 actuator correction applied (the truth).
 
 The linear samples are drawn and evaluated in chunks of :data:`LINEAR_CHUNK` (the same random
 stream as one draw: a chunk takes the next rows), so the working memory does not grow with the
-sample count; only Δλ (8 bytes a sample) is kept. The exact subsample runs in chunks of
-:data:`EXACT_CHUNK` on an :class:`pkmtol.executor.Executor`, each chunk one batched forward solve
-(:class:`pkmtol.kinematics.batch.BatchChain`); the chunks do not depend on the executor, so neither
-do the numbers.
+sample count; only Δλ (8 bytes a sample) is kept. A sample's map is not gathered: the samples of
+whole cycles of poses are multiplied pose by pose (:func:`cyclic_products`). The exact subsample
+runs in chunks of :data:`EXACT_CHUNK` on an :class:`pkmtol.executor.Executor`, each chunk one
+batched forward solve (:class:`pkmtol.kinematics.batch.BatchChain`); the chunks do not depend on
+the executor, so neither do the numbers.
 """
 
 from __future__ import annotations
@@ -55,6 +56,31 @@ def sample_errors(distribution: str, sigma: np.ndarray, count: int, rng: np.rand
     if distribution == "gaussian":
         return rng.standard_normal((count, sigma.size)) * sigma
     raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
+
+
+def cyclic_products(maps: np.ndarray, x: np.ndarray, start: int) -> np.ndarray:
+    """Rows ``maps[(start + s) mod m] @ x[s]`` (count, r) for maps (m, r, n) and samples ``x`` (count, n).
+
+    Sample ``s`` of a Monte Carlo run uses pose ``s mod m``. Gathering each sample's map (24 bytes
+    per sample and error for r = 3) and contracting it cost most of a linear cell; instead, the
+    whole cycles of poses in ``x`` are one stacked product per pose (``m`` products of
+    (cycles, n) @ (n, r)), and only the rows before the first whole cycle and after the last are
+    gathered. The rows agree with the gathered product to round-off (the sums run in another order).
+    """
+    m, count = len(maps), len(x)
+    out = np.empty((count, maps.shape[1]))
+    head = min((-start) % m, count)
+    full = (count - head) // m
+    body = slice(head, head + full * m)
+    if head:
+        out[:head] = np.einsum("sij,sj->si", maps[(start + np.arange(head)) % m], x[:head])
+    if full:
+        cycles = x[body].reshape(full, m, -1).transpose(1, 0, 2)  # (m, cycles, n)
+        prod = np.matmul(cycles, maps.transpose(0, 2, 1))  # (m, cycles, r)
+        out[body] = prod.transpose(1, 0, 2).reshape(full * m, -1)
+    if body.stop < count:
+        out[body.stop :] = np.einsum("sij,sj->si", maps[np.arange(count - body.stop) % m], x[body.stop :])
+    return out
 
 
 @dataclass(frozen=True)
@@ -260,14 +286,12 @@ def _linear_dlam(
     Jc: np.ndarray, sigma: np.ndarray, distribution: str, samples: int, rng: np.random.Generator, keep: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear Δλ (samples,) in chunks, and the first ``keep`` error rows (keep, k) for the exact part."""
-    m = len(Jc)
     dlam = np.empty(samples)
     head = []
     for start in range(0, samples, LINEAR_CHUNK):
         count = min(LINEAR_CHUNK, samples - start)
         eta = sample_errors(distribution, sigma, count, rng)
-        point_of = np.arange(start, start + count) % m
-        dlam[start : start + count] = np.linalg.norm(np.einsum("sij,sj->si", Jc[point_of], eta), axis=1)
+        dlam[start : start + count] = np.linalg.norm(cyclic_products(Jc, eta, start), axis=1)
         if start < keep:
             head.append(eta[: keep - start])
     return dlam, (np.concatenate(head) if head else np.zeros((0, Jc.shape[2])))
