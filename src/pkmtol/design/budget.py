@@ -3,14 +3,15 @@
 The main job holds, besides the mechanism, the error model at every grid and verification pose
 (about :data:`BYTES_PER_POSE_PARAMETER` bytes per pose and error parameter) and, per Monte Carlo
 sample, the kept Δλ and Δα of each distribution (:data:`BYTES_PER_SAMPLE`). The samples are drawn
-and evaluated in chunks, so the draws and the gathered maps take a fixed working set, at most
+and evaluated in chunks, so the draws and products take a fixed working set, at most
 :data:`CHUNK_BYTES_PER_PARAMETER` bytes per error parameter (a chunk of
-:data:`~pkmtol.design.mode_verification.MODE_CHUNK` samples: the position and tilt maps gathered
-per sample, the parameter draws and the products). Measured on the seed robot (peak RSS, dh set,
-n = 108, ``pkmtol allocate --no-figures``): 100,000 samples 291 MB and 1,000,000 samples 319 MB
-(31 bytes per sample) in the ideal mode; 1,000,000 samples 405 MB in the ``none`` mode and 366 MB
-with an orientation target. The estimate for 1,000,000 is 467 MB. 6,000 more verification poses:
-273 MB (420 bytes per pose and parameter).
+:data:`~pkmtol.design.mode_verification.MODE_CHUNK` samples: the parameter draws, the products,
+and the maps gathered for the rows outside whole cycles of poses). Measured on the seed robot
+(peak RSS, dh set, n = 108, ``pkmtol allocate --no-figures``): 100,000 samples 291 MB and
+1,000,000 samples 319 MB (31 bytes per sample) in the ideal mode; 1,000,000 samples 405 MB in the
+``none`` mode and 366 MB with an orientation target (before the cyclic products, which lowered the
+ideal mode's 1,000,000 to 298 MB). The estimate for 1,000,000 is 467 MB. 6,000 more verification
+poses: 273 MB (420 bytes per pose and parameter).
 
 :func:`check_memory` refuses a request whose estimate exceeds :data:`MEMORY_FRACTION` of the
 memory available, with :class:`~pkmtol.exceptions.ResourceLimitError` naming the option that

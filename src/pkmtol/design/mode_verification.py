@@ -38,7 +38,7 @@ from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
-#: Linear samples per chunk: the gathered maps of a chunk take 24 bytes per sample and parameter.
+#: Linear samples per chunk: a chunk's draws and products take a few doubles per sample and parameter.
 MODE_CHUNK = 16_384
 
 #: ``(pose index, full parameter vector, noise) → (P error (3,), rotation (3,))`` or None (unassembled).
