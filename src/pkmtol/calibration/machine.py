@@ -12,9 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.kinematics.batch import BatchChain, Solutions
+from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.kinematics.perturbation import perturbed_limb_models
+from pkmtol.kinematics.solutions import Solutions
 from pkmtol.model.mechanism import Mechanism
 
 

@@ -34,8 +34,9 @@ from pkmtol.error_model.limb_motion import loop_motion
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.twists import raw_columns_local, to_k_prime
 from pkmtol.exceptions import KinematicsError, MobilityError, SingularPoseError
-from pkmtol.kinematics.batch import BatchChain, Solutions
+from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.kinematics.solutions import Solutions
 from pkmtol.model.mechanism import Mechanism
 
 #: Relative singular-value threshold for null spaces (reciprocal screws).

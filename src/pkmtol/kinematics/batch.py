@@ -25,7 +25,8 @@ bound.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -36,16 +37,16 @@ from pkmtol.exceptions import (
     SingularPoseError,
     UnreachableTargetError,
 )
-from pkmtol.kinematics import se3_batch
+from pkmtol.kinematics import acceleration, se3_batch
 from pkmtol.kinematics.closed_chain import (
     MAX_ITERATIONS,
     SINGULAR_CONDITION,
     SINGULAR_RESIDUAL,
     TOLERANCE,
     ClosedChain,
-    Pose,
 )
 from pkmtol.kinematics.loops import loop_rows_many
+from pkmtol.kinematics.solutions import Solutions
 from pkmtol.kinematics.stacked_solve import condition_bound, exact_condition, newton_steps
 from pkmtol.model.mechanism import Mechanism
 
@@ -54,104 +55,24 @@ from pkmtol.model.mechanism import Mechanism
 _Perturbed = tuple[list[pin.Model], np.ndarray | None, list[np.ndarray | None]]
 #: A loop's frames over a batch: ``(oMa, oMb, J_a, J_b)``, (b, 4, 4) and (b, 6, nq) each.
 _LoopFrames = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+#: No task rows (forward problems), for the compiled closure rows.
+_NO_TARGETS = np.zeros((0, 3))
 
 
-@dataclass(frozen=True, eq=False)
-class Solutions:
-    """Solutions of ``B`` closed-chain problems (``N = Σ nq_i`` joints, frame K, SI units).
-
-    Rows of a failed problem hold its last iterate; ``errors[k]`` says why it failed.
+class _Evaluation(NamedTuple):
+    """The frames of a batch at one Newton iterate.
 
     Attributes:
-        q: Shape (B, N): all joint values (actual values: offsets included) [rad or m].
-        rotation: Shape (B, 3, 3): platform orientation in K (limb 0's platform frame).
-        translation: Shape (B, 3): position of the platform point O' in K [m].
-        p_m: Shape (B, 3): position of the reference point P in K [m].
-        residual: Shape (B,): norm of the closure (+ task) residual [m, rad].
-        condition: Shape (B,): upper bound ``κ_F`` of the Jacobian's 2-norm condition number.
-        jacobians: Per limb, shape (B, 6, nq_i): platform-frame (local) Jacobian at the solution.
-        system: Shape (B, rows, free): the closure (+ task) Jacobian at the solution.
-        system_inverse: Shape (B, free, rows): its inverse (pseudo-inverse if over-determined).
-        errors: Per problem, None or the :class:`KinematicsError` the per-pose solver raises.
-        limb_offsets: Where each limb's joints start in ``q`` (len(limbs) + 1 entries).
-        task: Whether these are inverse problems (their last three rows are the task of P).
+        placements: Shape (L, b, 4, 4): each limb's platform placement in K.
+        jacobians: Per limb, shape (b, 6, nq_i): its LOCAL Jacobian (a view of ``padded``).
+        loop_frames: Per limb, per internal loop, ``(oMa, oMb, J_a, J_b)``.
+        padded: Shape (L, b, 6, w): the Jacobians, zero-padded to the widest limb.
     """
 
-    q: np.ndarray
-    rotation: np.ndarray
-    translation: np.ndarray
-    p_m: np.ndarray
-    residual: np.ndarray
-    condition: np.ndarray
-    jacobians: tuple[np.ndarray, ...]
-    system: np.ndarray
-    system_inverse: np.ndarray
-    errors: tuple[KinematicsError | None, ...]
-    limb_offsets: tuple[int, ...]
-    task: bool = False
-
-    def __len__(self) -> int:
-        return len(self.errors)
-
-    @property
-    def ok(self) -> np.ndarray:
-        """Shape (B,): True where the problem was solved."""
-        return np.array([e is None for e in self.errors], dtype=bool)
-
-    def take(self, index: np.ndarray) -> Solutions:
-        """The problems ``index`` (in that order) as a batch of their own."""
-        index = np.asarray(index, dtype=int)
-        return Solutions(
-            q=self.q[index],
-            rotation=self.rotation[index],
-            translation=self.translation[index],
-            p_m=self.p_m[index],
-            residual=self.residual[index],
-            condition=self.condition[index],
-            jacobians=tuple(j[index] for j in self.jacobians),
-            system=self.system[index],
-            system_inverse=self.system_inverse[index],
-            errors=tuple(self.errors[int(k)] for k in index),
-            limb_offsets=self.limb_offsets,
-            task=self.task,
-        )
-
-    @staticmethod
-    def concatenate(parts: Sequence[Solutions]) -> Solutions:
-        """One batch of the problems of ``parts``, in order."""
-        return Solutions(
-            q=np.concatenate([p.q for p in parts]),
-            rotation=np.concatenate([p.rotation for p in parts]),
-            translation=np.concatenate([p.translation for p in parts]),
-            p_m=np.concatenate([p.p_m for p in parts]),
-            residual=np.concatenate([p.residual for p in parts]),
-            condition=np.concatenate([p.condition for p in parts]),
-            jacobians=tuple(np.concatenate(js) for js in zip(*(p.jacobians for p in parts), strict=True)),
-            system=np.concatenate([p.system for p in parts]),
-            system_inverse=np.concatenate([p.system_inverse for p in parts]),
-            errors=tuple(e for p in parts for e in p.errors),
-            limb_offsets=parts[0].limb_offsets,
-            task=parts[0].task,
-        )
-
-    def first_error(self) -> KinematicsError | None:
-        """The error of the first failed problem (in problem order), or None."""
-        return next((e for e in self.errors if e is not None), None)
-
-    def pose(self, k: int) -> Pose:
-        """Problem ``k`` as a :class:`Pose` (``q`` split per limb); raises its error if it failed."""
-        err = self.errors[k]
-        if err is not None:
-            raise err
-        q, o = self.q[k], self.limb_offsets
-        return Pose(
-            q=tuple(q[a:b].copy() for a, b in zip(o[:-1], o[1:], strict=True)),
-            oMp=pin.SE3(self.rotation[k].copy(), self.translation[k].copy()),
-            p_m=self.p_m[k].copy(),
-            residual=float(self.residual[k]),
-            condition=float(self.condition[k]),
-            tangent=self.system_inverse[k][:, -3:].copy() if self.task else None,
-        )
+    placements: np.ndarray
+    jacobians: list[np.ndarray]
+    loop_frames: list[list[_LoopFrames]]
+    padded: np.ndarray
 
 
 class BatchChain:
@@ -184,6 +105,8 @@ class BatchChain:
         self._n_closure = self.chain.n_equations  # platform closures, then internal loops
         self._skew_p = pin.skew(self.p_ref)
         self._cols = [slice(int(a), int(b)) for a, b in zip(self.offsets[:-1], self.offsets[1:], strict=True)]
+        self._offsets = np.asarray(self.offsets, dtype=np.int64)
+        self._width = max(limb.nq for limb in mechanism.limbs)
         # the scratch models of each slot: a perturbed limb of slot s runs on _slots[i][s]
         self._slots: list[list[pin.Model]] = [[] for _ in self.models]
 
@@ -300,41 +223,45 @@ class BatchChain:
             out.append((models, deltas[0], deltas[1:]))
         return out
 
-    def _evaluate(
-        self, q: np.ndarray, idx: np.ndarray, perturbation: list[_Perturbed] | None
-    ) -> tuple[list[np.ndarray], list[np.ndarray], list[list[_LoopFrames]]]:
-        """Per limb, platform placements (b, 4, 4), local Jacobians (b, 6, nq_i) and loop frames.
-
-        The loop frames of a limb are, per loop, ``(oMa, oMb, J_a, J_b)`` stacked over problems ``idx``.
-        """
-        placements, jacobians, loop_frames = [], [], []
+    def _evaluate(self, q: np.ndarray, idx: np.ndarray, perturbation: list[_Perturbed] | None) -> _Evaluation:
+        """The platform frames, their Jacobians and the loop frames of problems ``idx`` at ``q``."""
+        placements = np.empty((len(self.models), len(idx), 4, 4))
+        padded = np.zeros((len(self.models), len(idx), 6, self._width))
+        jacobians, loop_frames = [], []
         # the per-pose loop is the solver's hot spot: Pinocchio's functions bound once, each limb's
-        # joint values sliced once (rows of a contiguous copy), the pose's model picked up front
+        # joint values sliced once (rows of a contiguous copy), the pose's model picked up front,
+        # and a limb without internal loops (the usual case) reads its platform frame alone
         joint_jacobians, frame_placement = pin.computeJointJacobians, pin.updateFramePlacement
         frame_jacobian, local = pin.getFrameJacobian, pin.LOCAL
         for i, (model, data, fid, cols, limb) in enumerate(
             zip(self.models, self.datas, self.fids, self._cols, self.mechanism.limbs, strict=True)
         ):
             q_limb = q[idx, cols]
-            if perturbation is None:
-                models = [model] * len(idx)
-            else:
-                models = [perturbation[i][0][k] for k in idx]
-            hs, js = [], []
+            models = [model] * len(idx) if perturbation is None else [perturbation[i][0][k] for k in idx]
+            hs: list[np.ndarray] = []
+            js: list[np.ndarray] = []
             lf: list[list[np.ndarray]] = [[] for _ in range(4 * len(limb.loops))]
-            for m, qk in zip(models, q_limb, strict=True):
-                joint_jacobians(m, data, qk)
-                hs.append(frame_placement(m, data, fid).homogeneous)
-                js.append(frame_jacobian(m, data, fid, local))
-                for n, lp in enumerate(limb.loops):
-                    for side, f in enumerate((lp.frame_a, lp.frame_b)):
-                        lf[4 * n + side].append(frame_placement(m, data, f).homogeneous)
-                        lf[4 * n + 2 + side].append(frame_jacobian(m, data, f, local))
-            h, jac = np.array(hs), np.array(js)
+            if not limb.loops:
+                add_h, add_j = hs.append, js.append
+                for m, qk in zip(models, q_limb, strict=True):
+                    joint_jacobians(m, data, qk)
+                    add_h(frame_placement(m, data, fid).homogeneous)
+                    add_j(frame_jacobian(m, data, fid, local))
+            else:
+                for m, qk in zip(models, q_limb, strict=True):
+                    joint_jacobians(m, data, qk)
+                    hs.append(frame_placement(m, data, fid).homogeneous)
+                    js.append(frame_jacobian(m, data, fid, local))
+                    for n, lp in enumerate(limb.loops):
+                        for side, f in enumerate((lp.frame_a, lp.frame_b)):
+                            lf[4 * n + side].append(frame_placement(m, data, f).homogeneous)
+                            lf[4 * n + 2 + side].append(frame_jacobian(m, data, f, local))
+            placements[i] = hs
+            jac = padded[i, :, :, : limb.nq]
+            jac[...] = js
             attach = perturbation[i][1] if perturbation is not None else None
             if attach is not None:
-                h, jac = _moved(h, jac, attach[idx])
-            placements.append(h)
+                placements[i], jac[...] = _moved(placements[i], jac, attach[idx])
             jacobians.append(jac)
             frames = []
             for n, lp in enumerate(limb.loops):
@@ -346,20 +273,23 @@ class BatchChain:
                     ha, ja = _moved(ha, ja, attach[idx])
                 frames.append((ha, hb, ja, jb))
             loop_frames.append(frames)
-        return placements, jacobians, loop_frames
+        return _Evaluation(placements, jacobians, loop_frames, padded)
 
     def _system(
         self,
-        placements: list[np.ndarray],
+        placements: np.ndarray,
         jacobians: list[np.ndarray],
         loop_frames: list[list[_LoopFrames]],
         targets: np.ndarray | None,
+        padded: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals (b, rows), Jacobians (b, rows, N) and a near-half-turn mask (b,).
 
         The closure rows of every limb pair are computed together: ``e_i = oMp_0⁻¹ oMp_i``,
         ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``;
-        then each internal loop's rows (:func:`pkmtol.kinematics.loops.loop_rows_many`).
+        then each internal loop's rows (:func:`pkmtol.kinematics.loops.loop_rows_many`). With numba
+        (:mod:`pkmtol.kinematics.jit_kernels`) the platform and task rows are computed pose by pose
+        in compiled code from ``padded``, the Jacobians of :class:`_Evaluation`.
         """
         b = len(placements[0])
         n = self._n_closure
@@ -367,7 +297,23 @@ class BatchChain:
         rows = n + (3 if targets is not None else 0)
         res = np.empty((b, rows))
         jac = np.zeros((b, rows, self.n_joints))
-        h = np.stack(placements)  # (L, b, 4, 4)
+        kernels = acceleration.kernels()
+        if kernels is not None:
+            near_pi = np.zeros(b, dtype=bool)
+            kernels.closure_rows(
+                placements,
+                padded,
+                self._offsets,
+                self.p_ref,
+                _NO_TARGETS if targets is None else targets,
+                n,
+                res,
+                jac,
+                near_pi,
+            )
+            self._loop_rows(loop_frames, res, jac)
+            return res, jac, near_pi
+        h = placements  # (L, b, 4, 4)
         r0, p0 = h[0, :, :3, :3], h[0, :, :3, 3]
         r0t = np.swapaxes(r0, 1, 2)
         j0 = jacobians[0]
@@ -387,17 +333,21 @@ class BatchChain:
             near_pi = np.asarray(near.reshape(pairs, b).any(axis=0), dtype=bool)
         else:
             near_pi = np.zeros(b, dtype=bool)
-        for blocks, frames, cols in zip(self.chain.loop_blocks, loop_frames, self._cols, strict=True):
-            for (lp, lrows), (ha, hb, ja, jb) in zip(blocks, frames, strict=True):
-                res[:, lrows], jac[:, lrows, cols] = loop_rows_many(lp, ha, hb, ja, jb)
+        self._loop_rows(loop_frames, res, jac)
         if targets is not None:
             res[:, n:] = (r0 @ self.p_ref) + p0 - targets
             jac[:, n:, c0] = r0 @ (j0[:, :3] - self._skew_p @ j0[:, 3:])
         return res, jac, near_pi
 
+    def _loop_rows(self, loop_frames: list[list[_LoopFrames]], res: np.ndarray, jac: np.ndarray) -> None:
+        """Each internal loop's rows into ``res`` and ``jac`` (:func:`loop_rows_many`)."""
+        for blocks, frames, cols in zip(self.chain.loop_blocks, loop_frames, self._cols, strict=True):
+            for (lp, lrows), (ha, hb, ja, jb) in zip(blocks, frames, strict=True):
+                res[:, lrows], jac[:, lrows, cols] = loop_rows_many(lp, ha, hb, ja, jb)
+
     def _pinocchio_rows(
         self,
-        placements: list[np.ndarray],
+        placements: np.ndarray,
         jacobians: list[np.ndarray],
         k: int,
         res: np.ndarray,
@@ -427,6 +377,7 @@ class BatchChain:
         q = q0.copy()
         rows = self._n_closure + (3 if targets is not None else 0)
         n_free = int(free.sum())
+        all_free = n_free == len(free)
         done_h = [np.zeros((count, 4, 4)) for _ in self.models]
         done_j = [np.zeros((count, 6, lb.nq)) for lb in self.mechanism.limbs]
         system = np.zeros((count, rows, n_free))
@@ -436,13 +387,13 @@ class BatchChain:
         active = np.arange(count)
         converged_any: list[np.ndarray] = []
         for _ in range(MAX_ITERATIONS if count else 0):
-            placements, jacobians, loop_frames = self._evaluate(q, active, perturbation)
+            placements, jacobians, loop_frames, padded = self._evaluate(q, active, perturbation)
             res, jac, near_pi = self._system(
-                placements, jacobians, loop_frames, None if targets is None else targets[active]
+                placements, jacobians, loop_frames, None if targets is None else targets[active], padded
             )
             for k in np.flatnonzero(near_pi):
                 self._pinocchio_rows(placements, jacobians, int(k), res, jac)
-            a = jac[:, :, free]
+            a = jac if all_free else jac[:, :, free]
             norm = np.abs(res).max(axis=1)
             conv = (norm < TOLERANCE) | ((norm < 1e-11) & (norm >= prev[active]))
             if conv.any():
@@ -453,17 +404,20 @@ class BatchChain:
                 system[idx] = a[conv]
                 residual[idx] = np.linalg.norm(res[conv], axis=1)
                 converged_any.append(idx)
-            keep = ~conv
-            active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
-            if not active.size:
-                break
+                keep = ~conv
+                active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
+                if not active.size:
+                    break
             step = newton_steps(a, res)
             big = np.abs(step).max(axis=1)
             scale = np.where(big > 0.5, 0.5 / np.where(big > 0.5, big, 1.0), 1.0)
             step *= scale[:, None]
-            sub = q[active]
-            sub[:, free] -= step
-            q[active] = sub
+            if all_free:
+                q[active] -= step
+            else:
+                sub = q[active]
+                sub[:, free] -= step
+                q[active] = sub
             prev[active] = norm
         # problems still active ran out of iterations
         for k in active:
@@ -503,8 +457,7 @@ class BatchChain:
         )
 
     def _placement0(self, q: np.ndarray, perturbation: list[_Perturbed] | None, k: int) -> np.ndarray:
-        placements, _, _ = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
-        return placements[0][0]
+        return self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k)).placements[0][0]
 
     def _failure(
         self,
@@ -521,8 +474,12 @@ class BatchChain:
         ``norm`` is the residual of the last iterate checked; the condition is that of the
         Jacobian after the last step, as in the per-pose solver.
         """
-        placements, jacobians, frames = self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k))
-        res, jac, _ = self._system(placements, jacobians, frames, None if target is None else target[None])
+        placements, jacobians, frames, padded = self._evaluate(
+            q[None], np.zeros(1, dtype=int), _one(perturbation, k)
+        )
+        res, jac, _ = self._system(
+            placements, jacobians, frames, None if target is None else target[None], padded
+        )
         self._pinocchio_rows(placements, jacobians, 0, res, jac)
         cond = exact_condition(jac[0][:, free])
         label = what if target is not None else f"{what} (problem {k})"

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pkmtol.kinematics import acceleration
+
 
 def newton_steps(a: np.ndarray, res: np.ndarray) -> np.ndarray:
     """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise."""
@@ -33,21 +35,38 @@ def condition_bound(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``κ_F`` (b,) and the inverse (or pseudo-inverse) (b, free, rows) of stacked Jacobians."""
     rows, cols = a.shape[1:]
     if rows == cols:
-        try:
-            inv = np.linalg.inv(a)
-        except np.linalg.LinAlgError:
-            inv = np.array([_inv_or_nan(ak) for ak in a])
-        bound = np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(inv, axis=(1, 2))
+        inv = _inverses(a)
+        bound = _frobenius(a) * _frobenius(inv)
         return np.where(np.isfinite(bound), bound, np.inf), inv
     if rows > cols:
         g = np.swapaxes(a, 1, 2) @ a
-        try:
-            g_inv = np.linalg.inv(g)
-        except np.linalg.LinAlgError:
-            g_inv = np.array([_inv_or_nan(gk) for gk in g])
-        bound = np.sqrt(np.linalg.norm(g, axis=(1, 2)) * np.linalg.norm(g_inv, axis=(1, 2)))
+        g_inv = _inverses(g)
+        bound = np.sqrt(_frobenius(g) * _frobenius(g_inv))
         return np.where(np.isfinite(bound), bound, np.inf), g_inv @ np.swapaxes(a, 1, 2)
     return np.full(len(a), np.inf), np.full((len(a), cols, rows), np.nan)
+
+
+def _inverses(a: np.ndarray) -> np.ndarray:
+    """Inverses of stacked square matrices (b, n, n); NaN for an exactly singular one.
+
+    By the compiled LU of :mod:`pkmtol.kinematics.jit_kernels` when numba is there.
+    """
+    kernels = acceleration.kernels()
+    if kernels is not None:
+        inv = np.empty(a.shape)
+        singular = np.zeros(len(a), dtype=bool)
+        kernels.inverses(np.ascontiguousarray(a), inv, singular)
+        inv[singular] = np.nan
+        return inv
+    try:
+        return np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return np.array([_inv_or_nan(ak) for ak in a])
+
+
+def _frobenius(a: np.ndarray) -> np.ndarray:
+    """Frobenius norms (b,) of stacked matrices (b, r, c) (``np.linalg.norm(a, axis=(1, 2))``)."""
+    return np.sqrt(np.einsum("bij,bij->b", a, a))
 
 
 def _inv_or_nan(a: np.ndarray) -> np.ndarray:

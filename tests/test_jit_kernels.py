@@ -1,0 +1,162 @@
+"""The compiled kernels (numba, the ``fast`` extra) against the batched solver's numpy path.
+
+The same closure rows, Jacobians and inverses to round-off on every bundled robot, nominal and
+perturbed, inverse and forward; the same solutions and errors from whole solves; and the switch
+that turns the kernels off."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pkmtol.error_model.parameters import parameter_set
+from pkmtol.kinematics import acceleration
+from pkmtol.kinematics.batch import BatchChain
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.continuation import continuation
+from pkmtol.model.loader import load_mechanism
+
+jit_kernels = pytest.importorskip("pkmtol.kinematics.jit_kernels", reason="numba is not installed")
+
+ROOT = Path(__file__).resolve().parents[1]
+ROBOTS = sorted(p.parent for p in (ROOT / "robots").glob("*/mechanism.toml"))
+
+
+@pytest.fixture(scope="module", params=ROBOTS, ids=lambda p: p.name)
+def robot(request):
+    mech = load_mechanism(request.param)
+    chain = ClosedChain(mech)
+    grid = mech.task_space.grid()
+    return mech, chain, grid, continuation(BatchChain(mech, chain=chain), grid, chain.home())
+
+
+def systems(batch: BatchChain, q, targets, perturbation=None):
+    """``_system`` at ``q`` with the kernels and without: two (res, jac, near) triples."""
+    ev = batch._evaluate(q, np.arange(len(q)), perturbation)
+    with_kernels = batch._system(ev.placements, ev.jacobians, ev.loop_frames, targets, ev.padded)
+    original = acceleration.kernels
+    acceleration.kernels = lambda: None
+    try:
+        without = batch._system(ev.placements, ev.jacobians, ev.loop_frames, targets, ev.padded)
+    finally:
+        acceleration.kernels = original
+    return with_kernels, without
+
+
+def test_closure_rows_match_the_numpy_path(robot):
+    mech, chain, grid, sols = robot
+    batch = BatchChain(mech, chain=chain)
+    rng = np.random.default_rng(0)
+    q = sols.q[sols.ok] + rng.standard_normal((int(sols.ok.sum()), batch.n_joints)) * 0.05
+    targets = grid[sols.ok] + rng.standard_normal((len(q), 3)) * 0.01
+    for t in (targets, None):  # inverse (task rows) and forward problems
+        (res, jac, near), (res_np, jac_np, near_np) = systems(batch, q, t)
+        np.testing.assert_allclose(res, res_np, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(jac, jac_np, rtol=0, atol=1e-12 * np.abs(jac_np).max())
+        assert near.tolist() == near_np.tolist()
+        assert not near.any()
+
+
+def test_closure_rows_match_the_numpy_path_on_perturbed_machines(robot):
+    mech, chain, _, sols = robot
+    batch = BatchChain(mech, chain=chain, check_limits=False)
+    pset = parameter_set(mech, "urdf")
+    rng = np.random.default_rng(1)
+    q = sols.q[sols.ok][:20]
+    eps, _ = pset.perturbations(rng.standard_normal((len(q), len(pset))) * 1e-3, mech)
+    perturbation = batch._perturb(eps, len(q))
+    (res, jac, near), (res_np, jac_np, near_np) = systems(batch, q, None, perturbation)
+    assert np.abs(res_np).max() > 1e-5  # the errors open the closures
+    np.testing.assert_allclose(res, res_np, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(jac, jac_np, rtol=0, atol=1e-12 * np.abs(jac_np).max())
+    assert near.tolist() == near_np.tolist()
+
+
+def test_a_half_turn_is_flagged_as_in_numpy():
+    # two limbs whose platform frames are a half turn (minus 1e-4 rad) and a quarter turn apart
+    rng = np.random.default_rng(2)
+    b = 2
+    h = np.zeros((2, b, 4, 4))
+    h[:, :] = np.eye(4)
+    h[1, 0, :3, :3] = pin.exp3(np.array([0.0, 0.0, np.pi - 1e-4]))
+    h[1, 1, :3, :3] = pin.exp3(np.array([np.pi / 2, 0.0, 0.0]))
+    h[1, :, :3, 3] = rng.standard_normal((b, 3))
+    padded = rng.standard_normal((2, b, 6, 3))
+    res, jac, near = np.zeros((b, 6)), np.zeros((b, 6, 6)), np.zeros(b, dtype=bool)
+    jit_kernels.closure_rows(h, padded, np.array([0, 3, 6]), np.zeros(3), np.zeros((0, 3)), 6, res, jac, near)
+    assert near.tolist() == [True, False]
+    # the quarter turn's rows are Pinocchio's log6 and Jacobian
+    e = pin.SE3(h[1, 1])
+    np.testing.assert_allclose(res[1], pin.log6(e).vector, rtol=0, atol=1e-14)
+    jl = pin.Jlog6(e)
+    np.testing.assert_allclose(jac[1][:, 3:], jl @ padded[1, 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(jac[1][:, :3], -(jl @ e.toActionMatrixInverse()) @ padded[0, 1], atol=1e-12)
+
+
+def test_inverses_match_numpy_and_flag_singular_matrices():
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((30, 21, 21)) + 4.0 * np.eye(21)
+    a[7, :, 4] = 0.0  # a zero column: singular
+    out = np.empty_like(a)
+    singular = np.zeros(len(a), dtype=bool)
+    jit_kernels.inverses(a, out, singular)
+    assert np.flatnonzero(singular).tolist() == [7]
+    ok = ~singular
+    np.testing.assert_allclose(out[ok], np.linalg.inv(a[ok]), rtol=0, atol=1e-13 * np.abs(out[ok]).max())
+
+
+def test_the_python_sources_compute_what_the_compiled_kernels_do():
+    rng = np.random.default_rng(4)
+    a = rng.standard_normal((3, 6, 6))
+    out, out_py = np.empty_like(a), np.empty_like(a)
+    flags, flags_py = np.zeros(3, dtype=bool), np.zeros(3, dtype=bool)
+    jit_kernels.inverses(a, out, flags)
+    jit_kernels.inverses.py_func(a, out_py, flags_py)
+    np.testing.assert_allclose(out_py, out, rtol=1e-13, atol=0)
+    for theta in (1e-6, 0.3, 1.0, 3.0):
+        axis = rng.standard_normal(3)
+        e = pin.SE3(pin.exp3(theta * axis / np.linalg.norm(axis)), rng.standard_normal(3))
+        nu, jl, nu_py, jl_py = np.empty(6), np.empty((6, 6)), np.empty(6), np.empty((6, 6))
+        jit_kernels._log6(e.rotation, e.translation, nu, jl)
+        jit_kernels._log6.py_func(e.rotation, e.translation, nu_py, jl_py)
+        np.testing.assert_allclose(nu_py, nu, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(jl_py, jl, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(nu, pin.log6(e).vector, rtol=0, atol=1e-13)
+    assert jit_kernels._coefficients.py_func(0.7) == pytest.approx(jit_kernels._coefficients(0.7), rel=1e-15)
+
+
+def test_solutions_are_those_of_the_numpy_path(robot, monkeypatch):
+    mech, chain, grid, sols = robot
+    pset = parameter_set(mech, "urdf")
+    rng = np.random.default_rng(5)
+    q0 = sols.q[sols.ok][:24]
+    eta = rng.standard_normal((len(q0), len(pset))) * 1e-5
+    eps, offsets = pset.perturbations(eta, mech)
+    u = q0[:, chain.actuated_idx]
+    fwd = BatchChain(mech, check_limits=False).forward(u, q0, offsets, eps)
+    monkeypatch.setattr(acceleration, "kernels", lambda: None)
+    ref = continuation(BatchChain(mech, chain=ClosedChain(mech)), grid, chain.home())
+    fwd_ref = BatchChain(mech, check_limits=False).forward(u, q0, offsets, eps)
+    for got, want in ((sols, ref), (fwd, fwd_ref)):
+        assert [type(e).__name__ for e in got.errors] == [type(e).__name__ for e in want.errors]
+        ok = want.ok
+        np.testing.assert_allclose(got.q[ok], want.q[ok], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.condition[ok], want.condition[ok], rtol=1e-9)
+        np.testing.assert_allclose(got.system_inverse[ok], want.system_inverse[ok], rtol=0, atol=1e-9)
+    assert sols.ok.sum() > 0.9 * len(grid)
+
+
+def test_the_kernels_can_be_turned_off(monkeypatch):
+    load = acceleration.kernels.__wrapped__  # without the per-process cache
+    monkeypatch.delenv(acceleration.ENVIRONMENT, raising=False)
+    assert load() is jit_kernels
+    for off in ("0", "off", "False", " no "):
+        monkeypatch.setenv(acceleration.ENVIRONMENT, off)
+        assert load() is None
+    monkeypatch.setenv(acceleration.ENVIRONMENT, "1")
+    monkeypatch.setitem(sys.modules, "pkmtol.kinematics.jit_kernels", None)  # as without numba
+    assert load() is None
