@@ -18,6 +18,7 @@ from pkmtol.kinematics import acceleration
 from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.continuation import continuation
+from pkmtol.kinematics.frame_tables import FrameTables
 from pkmtol.model.loader import load_mechanism
 
 jit_kernels = pytest.importorskip("pkmtol.kinematics.jit_kernels", reason="numba is not installed")
@@ -36,7 +37,7 @@ def robot(request):
 
 def systems(batch: BatchChain, q, targets, perturbation=None):
     """``_system`` at ``q`` with the kernels and without: two (res, jac, near) triples."""
-    ev = batch._evaluate(q, np.arange(len(q)), perturbation)
+    ev = batch.frames.evaluate(q, np.arange(len(q)), perturbation)
     with_kernels = batch._system(ev.placements, ev.jacobians, ev.loop_frames, targets, ev.padded)
     original = acceleration.kernels
     acceleration.kernels = lambda: None
@@ -68,7 +69,7 @@ def test_closure_rows_match_the_numpy_path_on_perturbed_machines(robot):
     rng = np.random.default_rng(1)
     q = sols.q[sols.ok][:20]
     eps, _ = pset.perturbations(rng.standard_normal((len(q), len(pset))) * 1e-3, mech)
-    perturbation = batch._perturb(eps, len(q))
+    perturbation = batch.frames.perturb(eps, len(q))
     (res, jac, near), (res_np, jac_np, near_np) = systems(batch, q, None, perturbation)
     assert np.abs(res_np).max() > 1e-5  # the errors open the closures
     np.testing.assert_allclose(res, res_np, rtol=0, atol=1e-13)
@@ -160,3 +161,55 @@ def test_the_kernels_can_be_turned_off(monkeypatch):
     monkeypatch.setenv(acceleration.ENVIRONMENT, "1")
     monkeypatch.setitem(sys.modules, "pkmtol.kinematics.jit_kernels", None)  # as without numba
     assert load() is None
+
+    def no_cache_directory(name):
+        raise RuntimeError(f"cannot cache function: no locator available for file '{name}'")
+
+    monkeypatch.setattr(acceleration.importlib, "import_module", no_cache_directory)
+    assert load() is None
+
+
+def test_frames_are_pinocchios_nominal_and_perturbed(robot):
+    mech = robot[0]
+    models = [lb.model for lb in mech.limbs]
+    frames = [(i, lb.platform_frame) for i, lb in enumerate(mech.limbs)] + [
+        (i, f) for i, lb in enumerate(mech.limbs) for lp in lb.loops for f in (lp.frame_a, lp.frame_b)
+    ]
+    tables = FrameTables.of(models, frames)
+    rng = np.random.default_rng(6)
+    b, n = 12, len(tables.parent)
+    q = rng.uniform(-1.0, 1.0, (b, n))
+    eps = rng.standard_normal((b, n, 6)) * 1e-3
+    eps[0] = 0.0  # a nominal machine in the table: exactly the nominal placements
+    table = tables.perturbed(jit_kernels, eps)
+    np.testing.assert_array_equal(table[0], tables.placements[0])
+    offsets = np.cumsum([0] + [m.nq for m in models])
+    machines = []
+    for s in range(b):
+        limbs = []
+        for i, m in enumerate(models):
+            pm = m.copy()
+            for j in range(1, m.njoints):
+                pm.jointPlacements[j] = m.jointPlacements[j] * pin.exp6(eps[s, offsets[i] + j - 1])
+                np.testing.assert_allclose(
+                    table[s, offsets[i] + j - 1], pm.jointPlacements[j].homogeneous, atol=1e-15
+                )
+            limbs.append(pm)
+        machines.append(limbs)
+    rows = np.array([0, 3, 5, 11])
+    for tab, which, perturbed in (
+        (tables.placements, np.zeros(b, dtype=np.int64), False),
+        (table, np.arange(b), True),
+    ):
+        h, jac = tables.evaluate(jit_kernels, q, rows, tab, which)
+        for pos, s in enumerate(rows):
+            for f, (i, fid) in enumerate(frames):
+                m = machines[s][i] if perturbed else models[i]
+                data = m.createData()
+                pin.computeJointJacobians(m, data, q[s, offsets[i] : offsets[i + 1]])
+                np.testing.assert_allclose(
+                    h[f, pos], pin.updateFramePlacement(m, data, fid).homogeneous, atol=1e-14
+                )
+                want = pin.getFrameJacobian(m, data, fid, pin.LOCAL)
+                np.testing.assert_allclose(jac[f, pos, :, : m.nq], want, atol=1e-14)
+                assert not jac[f, pos, :, m.nq :].any()

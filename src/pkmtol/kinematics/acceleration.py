@@ -18,10 +18,17 @@ ENVIRONMENT = "PKMTOL_JIT"
 
 @cache
 def kernels() -> ModuleType | None:
-    """The module of compiled kernels, or None (numba not installed, or :data:`ENVIRONMENT` off)."""
+    """The module of compiled kernels, or None: the numpy path then runs, with the same numbers.
+
+    None when numba is not installed, when :data:`ENVIRONMENT` turns the kernels off, or when
+    numba has nowhere to cache them (the package's folder and numba's user cache both read-only;
+    set ``NUMBA_CACHE_DIR`` to a writable folder).
+    """
     if os.environ.get(ENVIRONMENT, "1").strip().lower() in {"0", "false", "no", "off"}:
         return None
     try:
         return importlib.import_module("pkmtol.kinematics.jit_kernels")
-    except ImportError:
+    except ImportError:  # numba is not installed
+        return None
+    except RuntimeError:  # numba finds no writable cache directory for the compiled code
         return None

@@ -1,19 +1,15 @@
-"""Many independent closed-chain solves at once: Newton in lockstep, numpy work stacked over the poses.
+"""Many independent closed-chain solves at once: Newton in lockstep, the work stacked over the poses.
 
 :class:`BatchChain` solves ``B`` inverse (task → joints) or forward (actuators → pose) problems of
-one mechanism together. Each Newton iteration calls Pinocchio once per pose and limb (one ``Data``
-per limb, reused for every pose), then does the rest for all poses in one go: the closure residual
-``log6(oMp_0⁻¹ oMp_i)`` and its Jacobian (:mod:`pkmtol.kinematics.se3_batch`), the Jacobian
-assembly and a stacked LU solve (least squares by stacked QR for over-constrained mechanisms).
-Poses leave the batch when they converge. The equations, tolerances, step limit and error rules
-are those of :class:`pkmtol.kinematics.closed_chain.ClosedChain`, so a pose gets the same solution
-(to the Newton tolerance) and the same error as with ``ClosedChain.inverse``/``forward``.
-
-Perturbed mechanisms (the exact verification, a calibration study) use a workspace of scratch limb
-models, one per slot of the batch, made once: a sample's joint placements
-``jointPlacements[j] · exp6(ε_j)`` are written into its slot's model in place, the platform
-attachment error ``exp6(ε_e)`` is applied in numpy. No ``Model`` copy and no ``createData`` per
-sample.
+one mechanism together. Each Newton iteration reads every limb's platform frame for all poses
+(:class:`~pkmtol.kinematics.batch_frames.BatchFrames`: compiled kernels, or Pinocchio once per pose
+and limb on a reused ``Data``), then does the rest for all poses in one go: the closure residual
+``log6(oMp_0⁻¹ oMp_i)`` and its Jacobian (:mod:`pkmtol.kinematics.se3_batch`, or compiled pose by
+pose), the Jacobian assembly and a stacked LU solve (least squares by stacked QR for
+over-constrained mechanisms). Poses leave the batch when they converge. The equations, tolerances,
+step limit and error rules are those of :class:`pkmtol.kinematics.closed_chain.ClosedChain`, so a
+pose gets the same solution (to the Newton tolerance) and the same error as with
+``ClosedChain.inverse``/``forward``.
 
 Conditioning: instead of an SVD per solve, the converged Jacobian's condition number is bounded by
 ``κ_F = ‖A‖_F ‖A⁻¹‖_F`` (``κ₂ ≤ κ_F ≤ n κ₂``; for an over-determined ``A``, ``√κ_F(AᵀA)``) from one
@@ -26,7 +22,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -38,6 +33,7 @@ from pkmtol.exceptions import (
     UnreachableTargetError,
 )
 from pkmtol.kinematics import acceleration, se3_batch
+from pkmtol.kinematics.batch_frames import BatchFrames, LoopFrames, Perturbation, one
 from pkmtol.kinematics.closed_chain import (
     MAX_ITERATIONS,
     SINGULAR_CONDITION,
@@ -50,29 +46,8 @@ from pkmtol.kinematics.solutions import Solutions
 from pkmtol.kinematics.stacked_solve import condition_bound, exact_condition, newton_steps
 from pkmtol.model.mechanism import Mechanism
 
-#: A limb's perturbation in a batch: per problem its model, then ``exp6(ε)`` (B, 4, 4) of the
-#: platform attachment and of each loop's frame b (None where no problem perturbs it).
-_Perturbed = tuple[list[pin.Model], np.ndarray | None, list[np.ndarray | None]]
-#: A loop's frames over a batch: ``(oMa, oMb, J_a, J_b)``, (b, 4, 4) and (b, 6, nq) each.
-_LoopFrames = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 #: No task rows (forward problems), for the compiled closure rows.
 _NO_TARGETS = np.zeros((0, 3))
-
-
-class _Evaluation(NamedTuple):
-    """The frames of a batch at one Newton iterate.
-
-    Attributes:
-        placements: Shape (L, b, 4, 4): each limb's platform placement in K.
-        jacobians: Per limb, shape (b, 6, nq_i): its LOCAL Jacobian (a view of ``padded``).
-        loop_frames: Per limb, per internal loop, ``(oMa, oMb, J_a, J_b)``.
-        padded: Shape (L, b, 6, w): the Jacobians, zero-padded to the widest limb.
-    """
-
-    placements: np.ndarray
-    jacobians: list[np.ndarray]
-    loop_frames: list[list[_LoopFrames]]
-    padded: np.ndarray
 
 
 class BatchChain:
@@ -106,9 +81,7 @@ class BatchChain:
         self._skew_p = pin.skew(self.p_ref)
         self._cols = [slice(int(a), int(b)) for a, b in zip(self.offsets[:-1], self.offsets[1:], strict=True)]
         self._offsets = np.asarray(self.offsets, dtype=np.int64)
-        self._width = max(limb.nq for limb in mechanism.limbs)
-        # the scratch models of each slot: a perturbed limb of slot s runs on _slots[i][s]
-        self._slots: list[list[pin.Model]] = [[] for _ in self.models]
+        self.frames = BatchFrames(mechanism, self.models, self.datas, self.fids)
 
     # --- public ---------------------------------------------------------------------------
 
@@ -175,7 +148,7 @@ class BatchChain:
             ]
         free = np.ones(self.n_joints, dtype=bool)
         free[self.actuated_idx] = False
-        perturbation = self._perturb(eps, len(q)) if eps is not None else None
+        perturbation = self.frames.perturb(eps, len(q)) if eps is not None else None
         return self._newton(q, free, None, perturbation, "forward kinematics")
 
     def predict(self, sols: Solutions, index: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
@@ -191,95 +164,11 @@ class BatchChain:
 
     # --- internals ------------------------------------------------------------------------
 
-    def _perturb(self, eps: Sequence[np.ndarray], count: int) -> list[_Perturbed]:
-        """Per limb: each problem's model (a scratch slot model when perturbed) and placement errors.
-
-        Returns, per limb, ``(models, attach, loops)``: ``attach`` is ``exp6(ε_e)`` of shape (B, 4, 4)
-        (None when no problem perturbs the attachment), ``loops`` the same per loop's frame b.
-        """
-        out = []
-        for i, (limb, e) in enumerate(zip(self.mechanism.limbs, eps, strict=True)):
-            e = np.asarray(e, dtype=float).reshape(count, limb.n_origins, 6)
-            nominal = self.models[i]
-            slots = self._slots[i]
-            while len(slots) < count:
-                slots.append(nominal.copy())
-            models = []
-            joints_hit = np.asarray(e[:, : limb.nq].any(axis=(1, 2)), dtype=bool)
-            for s in range(count):
-                if not joints_hit[s]:
-                    models.append(nominal)
-                    continue
-                m = slots[s]
-                for j in range(1, nominal.njoints):
-                    m.jointPlacements[j] = nominal.jointPlacements[j] * pin.exp6(e[s, j - 1])
-                models.append(m)
-            deltas: list[np.ndarray | None] = []
-            for k in range(limb.nq, limb.n_origins):  # the attachment, then each loop's frame b
-                hit = e[:, k].any()
-                deltas.append(
-                    np.array([pin.exp6(e[s, k]).homogeneous for s in range(count)]) if hit else None
-                )
-            out.append((models, deltas[0], deltas[1:]))
-        return out
-
-    def _evaluate(self, q: np.ndarray, idx: np.ndarray, perturbation: list[_Perturbed] | None) -> _Evaluation:
-        """The platform frames, their Jacobians and the loop frames of problems ``idx`` at ``q``."""
-        placements = np.empty((len(self.models), len(idx), 4, 4))
-        padded = np.zeros((len(self.models), len(idx), 6, self._width))
-        jacobians, loop_frames = [], []
-        # the per-pose loop is the solver's hot spot: Pinocchio's functions bound once, each limb's
-        # joint values sliced once (rows of a contiguous copy), the pose's model picked up front,
-        # and a limb without internal loops (the usual case) reads its platform frame alone
-        joint_jacobians, frame_placement = pin.computeJointJacobians, pin.updateFramePlacement
-        frame_jacobian, local = pin.getFrameJacobian, pin.LOCAL
-        for i, (model, data, fid, cols, limb) in enumerate(
-            zip(self.models, self.datas, self.fids, self._cols, self.mechanism.limbs, strict=True)
-        ):
-            q_limb = q[idx, cols]
-            models = [model] * len(idx) if perturbation is None else [perturbation[i][0][k] for k in idx]
-            hs: list[np.ndarray] = []
-            js: list[np.ndarray] = []
-            lf: list[list[np.ndarray]] = [[] for _ in range(4 * len(limb.loops))]
-            if not limb.loops:
-                add_h, add_j = hs.append, js.append
-                for m, qk in zip(models, q_limb, strict=True):
-                    joint_jacobians(m, data, qk)
-                    add_h(frame_placement(m, data, fid).homogeneous)
-                    add_j(frame_jacobian(m, data, fid, local))
-            else:
-                for m, qk in zip(models, q_limb, strict=True):
-                    joint_jacobians(m, data, qk)
-                    hs.append(frame_placement(m, data, fid).homogeneous)
-                    js.append(frame_jacobian(m, data, fid, local))
-                    for n, lp in enumerate(limb.loops):
-                        for side, f in enumerate((lp.frame_a, lp.frame_b)):
-                            lf[4 * n + side].append(frame_placement(m, data, f).homogeneous)
-                            lf[4 * n + 2 + side].append(frame_jacobian(m, data, f, local))
-            placements[i] = hs
-            jac = padded[i, :, :, : limb.nq]
-            jac[...] = js
-            attach = perturbation[i][1] if perturbation is not None else None
-            if attach is not None:
-                placements[i], jac[...] = _moved(placements[i], jac, attach[idx])
-            jacobians.append(jac)
-            frames = []
-            for n, lp in enumerate(limb.loops):
-                ha, hb, ja, jb = (np.array(x) for x in lf[4 * n : 4 * n + 4])
-                delta = perturbation[i][2][n] if perturbation is not None else None
-                if delta is not None:
-                    hb, jb = _moved(hb, jb, delta[idx])
-                if attach is not None and lp.frame_a in limb.attach_frames:
-                    ha, ja = _moved(ha, ja, attach[idx])
-                frames.append((ha, hb, ja, jb))
-            loop_frames.append(frames)
-        return _Evaluation(placements, jacobians, loop_frames, padded)
-
     def _system(
         self,
         placements: np.ndarray,
         jacobians: list[np.ndarray],
-        loop_frames: list[list[_LoopFrames]],
+        loop_frames: list[list[LoopFrames]],
         targets: np.ndarray | None,
         padded: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -289,7 +178,7 @@ class BatchChain:
         ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``;
         then each internal loop's rows (:func:`pkmtol.kinematics.loops.loop_rows_many`). With numba
         (:mod:`pkmtol.kinematics.jit_kernels`) the platform and task rows are computed pose by pose
-        in compiled code from ``padded``, the Jacobians of :class:`_Evaluation`.
+        in compiled code from ``padded``, the zero-padded Jacobians (``BatchFrames.evaluate``).
         """
         b = len(placements[0])
         n = self._n_closure
@@ -339,7 +228,7 @@ class BatchChain:
             jac[:, n:, c0] = r0 @ (j0[:, :3] - self._skew_p @ j0[:, 3:])
         return res, jac, near_pi
 
-    def _loop_rows(self, loop_frames: list[list[_LoopFrames]], res: np.ndarray, jac: np.ndarray) -> None:
+    def _loop_rows(self, loop_frames: list[list[LoopFrames]], res: np.ndarray, jac: np.ndarray) -> None:
         """Each internal loop's rows into ``res`` and ``jac`` (:func:`loop_rows_many`)."""
         for blocks, frames, cols in zip(self.chain.loop_blocks, loop_frames, self._cols, strict=True):
             for (lp, lrows), (ha, hb, ja, jb) in zip(blocks, frames, strict=True):
@@ -369,10 +258,46 @@ class BatchChain:
         q0: np.ndarray,
         free: np.ndarray,
         targets: np.ndarray | None,
-        perturbation: list[_Perturbed] | None,
+        perturbation: Perturbation | None,
         what: str,
     ) -> Solutions:
-        """Lockstep Newton on the free joints of every problem (``ClosedChain._newton``'s rules)."""
+        """Lockstep Newton on the free joints of every problem (``ClosedChain._newton``'s rules).
+
+        The figures a failed problem reports follow every rounding of the kinematics: a solve that
+        runs out of iterations made Newton wander, and the condition number of a singular Jacobian
+        is round-off over round-off. With the compiled kernels a failed problem is therefore solved
+        once more on Pinocchio's kinematics, so that its error says what the per-pose solver says.
+        """
+        sols = self._lockstep(q0, free, targets, perturbation, what, False, None)
+        failed = np.flatnonzero(~sols.ok)
+        if not failed.size or acceleration.kernels() is None:
+            return sols
+        again = self._lockstep(
+            q0[failed],
+            free,
+            None if targets is None else targets[failed],
+            self.frames.slots_of(perturbation, failed),
+            what,
+            True,
+            failed,
+        )
+        return sols.with_rows(failed, again)
+
+    def _lockstep(
+        self,
+        q0: np.ndarray,
+        free: np.ndarray,
+        targets: np.ndarray | None,
+        perturbation: Perturbation | None,
+        what: str,
+        by_pinocchio: bool,
+        numbers: np.ndarray | None,
+    ) -> Solutions:
+        """Newton in lockstep.
+
+        ``by_pinocchio``: the frames by Pinocchio (:meth:`_evaluate`); ``numbers``: the problems'
+        numbers in messages (default their positions).
+        """
         count = len(q0)
         q = q0.copy()
         rows = self._n_closure + (3 if targets is not None else 0)
@@ -387,7 +312,9 @@ class BatchChain:
         active = np.arange(count)
         converged_any: list[np.ndarray] = []
         for _ in range(MAX_ITERATIONS if count else 0):
-            placements, jacobians, loop_frames, padded = self._evaluate(q, active, perturbation)
+            placements, jacobians, loop_frames, padded = self.frames.evaluate(
+                q, active, perturbation, by_pinocchio
+            )
             res, jac, near_pi = self._system(
                 placements, jacobians, loop_frames, None if targets is None else targets[active], padded
             )
@@ -420,9 +347,19 @@ class BatchChain:
                 q[active] = sub
             prev[active] = norm
         # problems still active ran out of iterations
+        number = np.arange(count) if numbers is None else numbers
         for k in active:
             target = targets[k] if targets is not None else None
-            errors[int(k)] = self._failure(q[k], free, target, perturbation, int(k), float(prev[k]), what)
+            errors[int(k)] = self._failure(
+                q[k],
+                free,
+                target,
+                one(perturbation, int(k)),
+                int(number[k]),
+                float(prev[k]),
+                what,
+                by_pinocchio,
+            )
         solved = np.concatenate(converged_any) if converged_any else np.zeros(0, dtype=int)
         condition = np.full(count, np.nan)
         inverse = np.full((count, n_free, rows), np.nan)
@@ -435,12 +372,14 @@ class BatchChain:
                     exact = exact_condition(system[k])
                     condition[k] = exact
                     if rows < n_free or exact > SINGULAR_CONDITION:
-                        errors[int(k)] = SingularPoseError(_what(what, int(k), targets), exact)
+                        errors[int(k)] = SingularPoseError(_what(what, int(number[k]), targets), exact)
         r0 = done_h[0][:, :3, :3]
         p0 = done_h[0][:, :3, 3]
         for k in active:  # failed: report the last iterate's platform pose
-            h = self._placement0(q[k], perturbation, int(k))
-            r0[k], p0[k] = h[:3, :3], h[:3, 3]
+            h = self.frames.evaluate(
+                q[k][None], np.zeros(1, dtype=int), one(perturbation, int(k)), by_pinocchio
+            )
+            r0[k], p0[k] = h.placements[0][0][:3, :3], h.placements[0][0][:3, 3]
         return Solutions(
             q=q,
             rotation=r0,
@@ -456,33 +395,32 @@ class BatchChain:
             task=targets is not None,
         )
 
-    def _placement0(self, q: np.ndarray, perturbation: list[_Perturbed] | None, k: int) -> np.ndarray:
-        return self._evaluate(q[None], np.zeros(1, dtype=int), _one(perturbation, k)).placements[0][0]
-
     def _failure(
         self,
         q: np.ndarray,
         free: np.ndarray,
         target: np.ndarray | None,
-        perturbation: list[_Perturbed] | None,
-        k: int,
+        perturbation: Perturbation | None,
+        number: int,
         norm: float,
         what: str,
+        by_pinocchio: bool,
     ) -> KinematicsError:
-        """The error of a problem that ran out of iterations (``ClosedChain._newton``'s rule).
+        """The error of problem ``number`` that ran out of iterations (``ClosedChain._newton``'s rule).
 
-        ``norm`` is the residual of the last iterate checked; the condition is that of the
-        Jacobian after the last step, as in the per-pose solver.
+        ``perturbation`` is the problem's alone (:func:`_one`); ``norm`` is the residual of the
+        last iterate checked; the condition is that of the Jacobian after the last step, as in the
+        per-pose solver.
         """
-        placements, jacobians, frames, padded = self._evaluate(
-            q[None], np.zeros(1, dtype=int), _one(perturbation, k)
+        placements, jacobians, frames, padded = self.frames.evaluate(
+            q[None], np.zeros(1, dtype=int), perturbation, by_pinocchio
         )
         res, jac, _ = self._system(
             placements, jacobians, frames, None if target is None else target[None], padded
         )
         self._pinocchio_rows(placements, jacobians, 0, res, jac)
         cond = exact_condition(jac[0][:, free])
-        label = what if target is not None else f"{what} (problem {k})"
+        label = what if target is not None else f"{what} (problem {number})"
         if cond > SINGULAR_CONDITION and norm < SINGULAR_RESIDUAL:
             return SingularPoseError(f"the {label} Jacobian", cond)
         return ConvergenceError(label, norm, MAX_ITERATIONS)
@@ -491,22 +429,3 @@ class BatchChain:
 def _what(what: str, k: int, targets: np.ndarray | None) -> str:
     """The matrix a singular error names; forward problems are numbered (inverse ones have a target)."""
     return f"the {what} Jacobian" if targets is not None else f"the {what} Jacobian (problem {k})"
-
-
-def _one(perturbation: list[_Perturbed] | None, k: int) -> list[_Perturbed] | None:
-    """The perturbation of problem ``k`` alone (as problem 0)."""
-    if perturbation is None:
-        return None
-    return [
-        (
-            [models[k]],
-            None if attach is None else attach[k : k + 1],
-            [None if d is None else d[k : k + 1] for d in loops],
-        )
-        for models, attach, loops in perturbation
-    ]
-
-
-def _moved(h: np.ndarray, jac: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Frames ``h`` (b, 4, 4) and their LOCAL Jacobians (b, 6, k) moved by ``delta`` (b, 4, 4), local."""
-    return h @ delta, se3_batch.act_inverse(delta[:, :3, :3], delta[:, :3, 3], jac)

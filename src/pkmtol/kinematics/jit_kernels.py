@@ -1,27 +1,32 @@
 """Numba kernels of the batched solver's per-pose arithmetic (the optional extra ``pkmtol[fast]``).
 
-The batched solver (:mod:`pkmtol.kinematics.batch`) spends most of a Newton iteration outside
-Pinocchio: the closure residual ``log6(oMp_0⁻¹ oMp_i)``, its Jacobian and the Newton step, stacked
-over poses in numpy. numpy pays a fixed cost per operation and runs 3 × 3 to 21 × 21 products
-element by element, so those ~60 operations per iteration cost 3–4 times Pinocchio's own calls. The
-kernels here do the same arithmetic pose by pose in compiled loops:
+In numpy, the batched solver (:mod:`pkmtol.kinematics.batch`) spends a Newton iteration in two
+places: four calls into Pinocchio per limb and pose (about 1.8 µs each, more than the arithmetic
+they do), and the closure residual ``log6(oMp_0⁻¹ oMp_i)`` and its Jacobian stacked over poses,
+where numpy pays a fixed cost per operation and runs 3 × 3 to 6 × 6 products element by element.
+The kernels here do the same arithmetic pose by pose in compiled loops:
 
+* :func:`frames`: the limbs' forward kinematics, the platform and loop frames' placements and LOCAL
+  Jacobians, from the joint tables of :mod:`pkmtol.kinematics.frame_tables` (every pkmtol joint is
+  a 1-DOF revolute or prismatic joint), and :func:`perturbed_placements`, each machine's joint
+  placements ``placement · exp6(ε)``; both agree with Pinocchio to round-off;
 * :func:`closure_rows`: the platform closure rows and the task rows with their Jacobian, the
   formulas of :mod:`pkmtol.kinematics.se3_batch` (the same series below ``SERIES_ANGLE``, the same
   near-half-turn flag, which the caller hands to Pinocchio as before);
 * :func:`inverses`: the inverses of the converged Jacobians (the condition bound and the tangent)
   by LU with partial pivoting, with a flag for each exactly singular matrix.
 
-The Newton steps stay with LAPACK (``numpy.linalg.solve``), as in the per-pose solver: a target
-out of reach makes Newton wander, and the residual it reports after the last iteration follows
-every rounding of the steps. With the same LAPACK steps, the batch reports the same residual as
-``ClosedChain`` (``tests/test_batch.py``); a compiled LU changed it in the second digit.
+The Newton steps stay with LAPACK (``numpy.linalg.solve``), as in the per-pose solver. What a failed
+problem reports follows every rounding (a wandering Newton's last residual, a singular Jacobian's
+condition number), so the solver solves a failed problem once more with Pinocchio's kinematics,
+and reports what the per-pose solver reports (``tests/test_batch.py``).
 
 This module needs numba; :func:`pkmtol.kinematics.acceleration.kernels` imports it when numba is
 installed and not turned off (``PKMTOL_JIT=0``). The kernels are compiled on first use and cached
-beside this file (numba's ``cache=True``): a process pays numba's import (about 0.3 s) and loads the
-machine code, and only the first run after an install compiles. Without them the solver keeps its
-numpy path; both give the same solutions to round-off (``tests/test_jit_kernels.py``).
+beside this file (numba's ``cache=True``): a process pays numba's import and the first load of
+machine code (about 0.9 s CPU together), and the first run after an install compiles (about 10 s).
+Without them the solver keeps its numpy path; both give the same solutions to round-off
+(``tests/test_jit_kernels.py``).
 """
 
 from __future__ import annotations
@@ -290,3 +295,182 @@ def inverses(a: np.ndarray, out: np.ndarray, singular: np.ndarray) -> None:
             d = 1.0 / lu[i, i]
             for c in range(n):
                 x[i, c] *= d
+
+
+@_jit
+def perturbed_placements(nominal: np.ndarray, eps: np.ndarray, out: np.ndarray) -> None:
+    """Joint placements ``nominal[j] · exp6(eps[s, j])`` of many machines, as homogeneous matrices.
+
+    Args:
+        nominal: Shape (n, 4, 4): each joint's placement in its parent.
+        eps: Shape (c, n, 6): each machine's placement errors ``[v; ω]`` in the joint frame.
+        out: Shape (c, n, 4, 4): written.
+
+    ``exp6`` is Rodrigues' formula, ``R = I + a[ω]× + b[ω]×²`` and ``p = (I + b[ω]× + c[ω]×²) v``
+    with ``a = sin θ/θ``, ``b = (1 − cos θ)/θ²``, ``c = (θ − sin θ)/θ³``, by their series below
+    θ = 1e-4 (Pinocchio's ``exp6`` to round-off, ``tests/test_jit_kernels.py``).
+    """
+    e = np.empty((4, 4))
+    k1 = np.empty((3, 3))
+    k2 = np.empty((3, 3))
+    for s in range(eps.shape[0]):
+        for j in range(eps.shape[1]):
+            v0, v1, v2 = eps[s, j, 0], eps[s, j, 1], eps[s, j, 2]
+            w0, w1, w2 = eps[s, j, 3], eps[s, j, 4], eps[s, j, 5]
+            t2 = w0 * w0 + w1 * w1 + w2 * w2
+            if t2 < 1e-8:
+                a = 1.0 - t2 / 6.0 * (1.0 - t2 / 20.0)
+                b = 0.5 - t2 / 24.0 * (1.0 - t2 / 30.0)
+                c = 1.0 / 6.0 - t2 / 120.0 * (1.0 - t2 / 42.0)
+            else:
+                t = np.sqrt(t2)
+                st, ct = np.sin(t), np.cos(t)
+                a, b, c = st / t, (1.0 - ct) / t2, (t - st) / (t2 * t)
+            k1[0, 0], k1[0, 1], k1[0, 2] = 0.0, -w2, w1
+            k1[1, 0], k1[1, 1], k1[1, 2] = w2, 0.0, -w0
+            k1[2, 0], k1[2, 1], k1[2, 2] = -w1, w0, 0.0
+            for r in range(3):
+                for col in range(3):
+                    k2[r, col] = k1[r, 0] * k1[0, col] + k1[r, 1] * k1[1, col] + k1[r, 2] * k1[2, col]
+            for r in range(3):
+                for col in range(3):
+                    e[r, col] = a * k1[r, col] + b * k2[r, col] + (1.0 if r == col else 0.0)
+                vr = (
+                    v0 * (b * k1[r, 0] + c * k2[r, 0])
+                    + v1 * (b * k1[r, 1] + c * k2[r, 1])
+                    + v2 * (b * k1[r, 2] + c * k2[r, 2])
+                )
+                e[r, 3] = eps[s, j, r] + vr
+            for r in range(3):
+                for col in range(4):
+                    acc = nominal[j, r, 3] if col == 3 else 0.0
+                    for m in range(3):
+                        acc += nominal[j, r, m] * e[m, col]
+                    out[s, j, r, col] = acc
+                out[s, j, 3, r] = 0.0
+            out[s, j, 3, 3] = 1.0
+
+
+@_jit
+def frames(
+    q: np.ndarray,
+    rows: np.ndarray,
+    table: np.ndarray,
+    which: np.ndarray,
+    parent: np.ndarray,
+    revolute: np.ndarray,
+    axis: np.ndarray,
+    f_joint: np.ndarray,
+    f_place: np.ndarray,
+    f_start: np.ndarray,
+    f_support: np.ndarray,
+    h: np.ndarray,
+    jac: np.ndarray,
+) -> None:
+    """Placements and LOCAL Jacobians of frames of 1-DOF joint trees, pose by pose.
+
+    Pinocchio's ``forwardKinematics``, ``updateFramePlacement`` and ``getFrameJacobian(…, LOCAL)``
+    for revolute and prismatic joints (:mod:`pkmtol.kinematics.frame_tables` has the layout):
+    joint ``j``'s placement in its parent is ``table[which[k], j] · exp(S_j q_j)`` (Rodrigues for a
+    revolute joint of unit axis ``a``, ``a q`` for a prismatic one), ``oMi = oM_parent · liMi``,
+    ``oMf = oMi[f_joint] · f_place``, and the column of a supporting joint ``j`` is
+    ``[R_fᵀ ((t_j − t_f) × u_j) ; R_fᵀ u_j]`` (revolute) or ``[R_fᵀ u_j ; 0]`` (prismatic),
+    ``u_j = R_j a_j``.
+
+    Args:
+        q: Shape (B, n): joint values of every problem [rad or m].
+        rows: Shape (b,): the problems to evaluate.
+        table: Shape (M, n, 4, 4): joint placements, one set per machine.
+        which: Shape (B,): each problem's machine (row of ``table``).
+        parent: Shape (n,): each joint's parent joint (−1: the root); parents come first.
+        revolute: Shape (n,): revolute (True) or prismatic joint.
+        axis: Shape (n, 3): unit joint axes in the joint frames.
+        f_joint: Shape (F,): each frame's parent joint.
+        f_place: Shape (F, 4, 4): each frame's placement in its parent joint.
+        f_start: Shape (F,): the first joint of each frame's limb (its Jacobian's column 0).
+        f_support: Shape (F, w): which of its limb's joints move each frame.
+        h: Shape (F, b, 4, 4): written with the frames' placements in K.
+        jac: Shape (F, b, 6, w): written in the supported columns (the caller zeroes the rest).
+    """
+    n = parent.shape[0]
+    rot = np.empty((n, 3, 3))
+    pos = np.empty((n, 3))
+    lr = np.empty((3, 3))
+    lt = np.empty(3)
+    rq = np.empty((3, 3))
+    rf = np.empty((3, 3))
+    tf = np.empty(3)
+    for kk in range(rows.shape[0]):
+        k = rows[kk]
+        place = table[which[k]]
+        for j in range(n):
+            x = q[k, j]
+            a0, a1, a2 = axis[j, 0], axis[j, 1], axis[j, 2]
+            if revolute[j]:
+                c, s = np.cos(x), np.sin(x)
+                d = 1.0 - c
+                rq[0, 0], rq[0, 1], rq[0, 2] = c + d * a0 * a0, d * a0 * a1 - s * a2, d * a0 * a2 + s * a1
+                rq[1, 0], rq[1, 1], rq[1, 2] = d * a1 * a0 + s * a2, c + d * a1 * a1, d * a1 * a2 - s * a0
+                rq[2, 0], rq[2, 1], rq[2, 2] = d * a2 * a0 - s * a1, d * a2 * a1 + s * a0, c + d * a2 * a2
+                for r in range(3):
+                    for col in range(3):
+                        lr[r, col] = (
+                            place[j, r, 0] * rq[0, col]
+                            + place[j, r, 1] * rq[1, col]
+                            + place[j, r, 2] * rq[2, col]
+                        )
+                    lt[r] = place[j, r, 3]
+            else:
+                for r in range(3):
+                    for col in range(3):
+                        lr[r, col] = place[j, r, col]
+                    lt[r] = (
+                        place[j, r, 3] + (place[j, r, 0] * a0 + place[j, r, 1] * a1 + place[j, r, 2] * a2) * x
+                    )
+            p = parent[j]
+            if p < 0:
+                rot[j] = lr
+                pos[j] = lt
+            else:
+                for r in range(3):
+                    for col in range(3):
+                        rot[j, r, col] = (
+                            rot[p, r, 0] * lr[0, col] + rot[p, r, 1] * lr[1, col] + rot[p, r, 2] * lr[2, col]
+                        )
+                    pos[j, r] = rot[p, r, 0] * lt[0] + rot[p, r, 1] * lt[1] + rot[p, r, 2] * lt[2] + pos[p, r]
+        for f in range(f_joint.shape[0]):
+            pj = f_joint[f]
+            for r in range(3):
+                for col in range(3):
+                    rf[r, col] = (
+                        rot[pj, r, 0] * f_place[f, 0, col]
+                        + rot[pj, r, 1] * f_place[f, 1, col]
+                        + rot[pj, r, 2] * f_place[f, 2, col]
+                    )
+                    h[f, kk, r, col] = rf[r, col]
+                tf[r] = (
+                    rot[pj, r, 0] * f_place[f, 0, 3]
+                    + rot[pj, r, 1] * f_place[f, 1, 3]
+                    + rot[pj, r, 2] * f_place[f, 2, 3]
+                    + pos[pj, r]
+                )
+                h[f, kk, r, 3] = tf[r]
+                h[f, kk, 3, r] = 0.0
+            h[f, kk, 3, 3] = 1.0
+            for col in range(f_support.shape[1]):
+                if not f_support[f, col]:
+                    continue
+                j = f_start[f] + col
+                u0 = rot[j, 0, 0] * axis[j, 0] + rot[j, 0, 1] * axis[j, 1] + rot[j, 0, 2] * axis[j, 2]
+                u1 = rot[j, 1, 0] * axis[j, 0] + rot[j, 1, 1] * axis[j, 1] + rot[j, 1, 2] * axis[j, 2]
+                u2 = rot[j, 2, 0] * axis[j, 0] + rot[j, 2, 1] * axis[j, 1] + rot[j, 2, 2] * axis[j, 2]
+                if revolute[j]:
+                    d0, d1, d2 = pos[j, 0] - tf[0], pos[j, 1] - tf[1], pos[j, 2] - tf[2]
+                    v0, v1, v2 = d1 * u2 - d2 * u1, d2 * u0 - d0 * u2, d0 * u1 - d1 * u0
+                    for r in range(3):
+                        jac[f, kk, r, col] = rf[0, r] * v0 + rf[1, r] * v1 + rf[2, r] * v2
+                        jac[f, kk, 3 + r, col] = rf[0, r] * u0 + rf[1, r] * u1 + rf[2, r] * u2
+                else:
+                    for r in range(3):
+                        jac[f, kk, r, col] = rf[0, r] * u0 + rf[1, r] * u1 + rf[2, r] * u2
+                        jac[f, kk, 3 + r, col] = 0.0

@@ -72,6 +72,33 @@ class Solutions:
             task=self.task,
         )
 
+    def with_rows(self, index: np.ndarray, other: Solutions) -> Solutions:
+        """These solutions with problems ``index`` replaced by ``other``'s (in that order)."""
+        index = np.asarray(index, dtype=int)
+
+        def put(mine: np.ndarray, theirs: np.ndarray) -> np.ndarray:
+            out = mine.copy()
+            out[index] = theirs
+            return out
+
+        errors = list(self.errors)
+        for pos, k in enumerate(index):
+            errors[int(k)] = other.errors[pos]
+        return Solutions(
+            q=put(self.q, other.q),
+            rotation=put(self.rotation, other.rotation),
+            translation=put(self.translation, other.translation),
+            p_m=put(self.p_m, other.p_m),
+            residual=put(self.residual, other.residual),
+            condition=put(self.condition, other.condition),
+            jacobians=tuple(put(a, b) for a, b in zip(self.jacobians, other.jacobians, strict=True)),
+            system=put(self.system, other.system),
+            system_inverse=put(self.system_inverse, other.system_inverse),
+            errors=tuple(errors),
+            limb_offsets=self.limb_offsets,
+            task=self.task,
+        )
+
     @staticmethod
     def concatenate(parts: Sequence[Solutions]) -> Solutions:
         """One batch of the problems of ``parts``, in order."""
