@@ -19,6 +19,7 @@ from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.continuation import continuation
 from pkmtol.kinematics.frame_tables import FrameTables
+from pkmtol.kinematics.stacked_solve import newton_steps
 from pkmtol.model.loader import load_mechanism
 
 jit_kernels = pytest.importorskip("pkmtol.kinematics.jit_kernels", reason="numba is not installed")
@@ -213,3 +214,21 @@ def test_frames_are_pinocchios_nominal_and_perturbed(robot):
                 want = pin.getFrameJacobian(m, data, fid, pin.LOCAL)
                 np.testing.assert_allclose(jac[f, pos, :, : m.nq], want, atol=1e-14)
                 assert not jac[f, pos, :, m.nq :].any()
+
+
+def test_newton_steps_match_lapack_and_flag_singular_matrices():
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((40, 21, 21)) + 4.0 * np.eye(21)
+    a[3, :, 4] = 0.0  # a zero column: singular, solved in the least-squares sense as numpy's path does
+    r = rng.standard_normal((40, 21))
+    steps = np.empty_like(r)
+    singular = np.zeros(len(a), dtype=bool)
+    jit_kernels.solve_steps(a, r, steps, singular)
+    assert np.flatnonzero(singular).tolist() == [3]
+    ok = ~singular
+    np.testing.assert_allclose(
+        steps[ok], np.linalg.solve(a[ok], r[ok][..., None])[..., 0], rtol=1e-10, atol=1e-12
+    )
+    compiled = newton_steps(a, r, compiled=True)
+    np.testing.assert_allclose(compiled, newton_steps(a, r), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(compiled[3], np.linalg.lstsq(a[3], r[3], rcond=None)[0], rtol=0, atol=1e-12)

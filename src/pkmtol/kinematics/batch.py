@@ -290,13 +290,13 @@ class BatchChain:
         targets: np.ndarray | None,
         perturbation: Perturbation | None,
         what: str,
-        by_pinocchio: bool,
+        as_per_pose: bool,
         numbers: np.ndarray | None,
     ) -> Solutions:
         """Newton in lockstep.
 
-        ``by_pinocchio``: the frames by Pinocchio (:meth:`_evaluate`); ``numbers``: the problems'
-        numbers in messages (default their positions).
+        ``as_per_pose``: with the per-pose solver's numerics (Pinocchio's frames, LAPACK's steps);
+        ``numbers``: the problems' numbers in messages (default their positions).
         """
         count = len(q0)
         q = q0.copy()
@@ -313,7 +313,7 @@ class BatchChain:
         converged_any: list[np.ndarray] = []
         for _ in range(MAX_ITERATIONS if count else 0):
             placements, jacobians, loop_frames, padded = self.frames.evaluate(
-                q, active, perturbation, by_pinocchio
+                q, active, perturbation, as_per_pose
             )
             res, jac, near_pi = self._system(
                 placements, jacobians, loop_frames, None if targets is None else targets[active], padded
@@ -335,7 +335,7 @@ class BatchChain:
                 active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
                 if not active.size:
                     break
-            step = newton_steps(a, res)
+            step = newton_steps(a, res, compiled=not as_per_pose)
             big = np.abs(step).max(axis=1)
             scale = np.where(big > 0.5, 0.5 / np.where(big > 0.5, big, 1.0), 1.0)
             step *= scale[:, None]
@@ -358,7 +358,7 @@ class BatchChain:
                 int(number[k]),
                 float(prev[k]),
                 what,
-                by_pinocchio,
+                as_per_pose,
             )
         solved = np.concatenate(converged_any) if converged_any else np.zeros(0, dtype=int)
         condition = np.full(count, np.nan)
@@ -377,7 +377,7 @@ class BatchChain:
         p0 = done_h[0][:, :3, 3]
         for k in active:  # failed: report the last iterate's platform pose
             h = self.frames.evaluate(
-                q[k][None], np.zeros(1, dtype=int), one(perturbation, int(k)), by_pinocchio
+                q[k][None], np.zeros(1, dtype=int), one(perturbation, int(k)), as_per_pose
             )
             r0[k], p0[k] = h.placements[0][0][:3, :3], h.placements[0][0][:3, 3]
         return Solutions(
@@ -404,7 +404,7 @@ class BatchChain:
         number: int,
         norm: float,
         what: str,
-        by_pinocchio: bool,
+        as_per_pose: bool,
     ) -> KinematicsError:
         """The error of problem ``number`` that ran out of iterations (``ClosedChain._newton``'s rule).
 
@@ -413,7 +413,7 @@ class BatchChain:
         per-pose solver.
         """
         placements, jacobians, frames, padded = self.frames.evaluate(
-            q[None], np.zeros(1, dtype=int), perturbation, by_pinocchio
+            q[None], np.zeros(1, dtype=int), perturbation, as_per_pose
         )
         res, jac, _ = self._system(
             placements, jacobians, frames, None if target is None else target[None], padded

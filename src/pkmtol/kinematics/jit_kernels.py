@@ -13,13 +13,14 @@ The kernels here do the same arithmetic pose by pose in compiled loops:
 * :func:`closure_rows`: the platform closure rows and the task rows with their Jacobian, the
   formulas of :mod:`pkmtol.kinematics.se3_batch` (the same series below ``SERIES_ANGLE``, the same
   near-half-turn flag, which the caller hands to Pinocchio as before);
-* :func:`inverses`: the inverses of the converged Jacobians (the condition bound and the tangent)
-  by LU with partial pivoting, with a flag for each exactly singular matrix.
+* :func:`solve_steps` and :func:`inverses`: the Newton steps of square systems and the inverses of
+  the converged Jacobians (the condition bound and the tangent), by LU with partial pivoting, with a
+  flag for each exactly singular matrix.
 
-The Newton steps stay with LAPACK (``numpy.linalg.solve``), as in the per-pose solver. What a failed
-problem reports follows every rounding (a wandering Newton's last residual, a singular Jacobian's
-condition number), so the solver solves a failed problem once more with Pinocchio's kinematics,
-and reports what the per-pose solver reports (``tests/test_batch.py``).
+What a failed problem reports follows every rounding (a wandering Newton's last residual, a singular
+Jacobian's condition number), so the solver solves a failed problem once more as the per-pose
+solver does, with Pinocchio's kinematics and LAPACK's steps, and reports what the per-pose solver
+reports (``tests/test_batch.py``).
 
 This module needs numba; :func:`pkmtol.kinematics.acceleration.kernels` imports it when numba is
 installed and not turned off (``PKMTOL_JIT=0``). The kernels are compiled on first use and cached
@@ -253,6 +254,47 @@ def _lu(lu: np.ndarray, perm: np.ndarray) -> bool:
                 for c in range(j + 1, n):
                     lu[i, c] -= f * lu[j, c]
     return True
+
+
+@_jit
+def _lu_solve(lu: np.ndarray, perm: np.ndarray, x: np.ndarray) -> None:
+    """Solve ``A x = b`` in place (``x`` holds ``b``) from :func:`_lu`'s factors."""
+    n = lu.shape[0]
+    for j in range(n):
+        p = perm[j]
+        if p != j:
+            x[j], x[p] = x[p], x[j]
+    for i in range(n):
+        acc = x[i]
+        for c in range(i):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = x[i]
+        for c in range(i + 1, n):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc / lu[i, i]
+
+
+@_jit
+def solve_steps(a: np.ndarray, rhs: np.ndarray, steps: np.ndarray, singular: np.ndarray) -> None:
+    """Solve ``a[k] x = rhs[k]`` for square ``a`` (b, n, n) by :func:`_lu`.
+
+    ``singular[k]`` is set where a pivot is exactly zero (``steps[k]`` is then undefined), where
+    ``numpy.linalg.solve`` raises ``LinAlgError``.
+    """
+    n = a.shape[1]
+    lu = np.empty((n, n))
+    perm = np.empty(n, dtype=np.int64)
+    x = np.empty(n)
+    for k in range(a.shape[0]):
+        lu[:, :] = a[k]
+        singular[k] = not _lu(lu, perm)
+        if singular[k]:
+            continue
+        x[:] = rhs[k]
+        _lu_solve(lu, perm, x)
+        steps[k, :] = x
 
 
 @_jit

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,6 +10,9 @@ import pinocchio as pin
 
 from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics.closed_chain import Pose
+
+#: One array field of :class:`Solutions`, as a function of the solutions.
+_Field = Callable[["Solutions"], np.ndarray]
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,64 +60,67 @@ class Solutions:
     def take(self, index: np.ndarray) -> Solutions:
         """The problems ``index`` (in that order) as a batch of their own."""
         index = np.asarray(index, dtype=int)
-        return Solutions(
-            q=self.q[index],
-            rotation=self.rotation[index],
-            translation=self.translation[index],
-            p_m=self.p_m[index],
-            residual=self.residual[index],
-            condition=self.condition[index],
-            jacobians=tuple(j[index] for j in self.jacobians),
-            system=self.system[index],
-            system_inverse=self.system_inverse[index],
-            errors=tuple(self.errors[int(k)] for k in index),
-            limb_offsets=self.limb_offsets,
-            task=self.task,
-        )
+        return self._built(lambda f: f(self)[index], [self.errors[int(k)] for k in index])
 
     def with_rows(self, index: np.ndarray, other: Solutions) -> Solutions:
         """These solutions with problems ``index`` replaced by ``other``'s (in that order)."""
         index = np.asarray(index, dtype=int)
 
-        def put(mine: np.ndarray, theirs: np.ndarray) -> np.ndarray:
-            out = mine.copy()
-            out[index] = theirs
+        def put(f: _Field) -> np.ndarray:
+            out = f(self).copy()
+            out[index] = f(other)
             return out
 
         errors = list(self.errors)
         for pos, k in enumerate(index):
             errors[int(k)] = other.errors[pos]
-        return Solutions(
-            q=put(self.q, other.q),
-            rotation=put(self.rotation, other.rotation),
-            translation=put(self.translation, other.translation),
-            p_m=put(self.p_m, other.p_m),
-            residual=put(self.residual, other.residual),
-            condition=put(self.condition, other.condition),
-            jacobians=tuple(put(a, b) for a, b in zip(self.jacobians, other.jacobians, strict=True)),
-            system=put(self.system, other.system),
-            system_inverse=put(self.system_inverse, other.system_inverse),
-            errors=tuple(errors),
-            limb_offsets=self.limb_offsets,
-            task=self.task,
-        )
+        return self._built(put, errors)
+
+    @staticmethod
+    def scatter(parts: Sequence[Solutions], index: Sequence[np.ndarray], count: int) -> Solutions:
+        """One batch of ``count`` problems: ``parts[p]``'s problems at positions ``index[p]``.
+
+        Together the ``index`` arrays hold every position once (``concatenate(parts)`` taken in the
+        inverse order of ``concatenate(index)``, with one copy instead of two).
+        """
+        where = [np.asarray(i, dtype=int) for i in index]
+
+        def gather(f: _Field) -> np.ndarray:
+            out = np.empty((count,) + f(parts[0]).shape[1:])
+            for part, at in zip(parts, where, strict=True):
+                out[at] = f(part)
+            return out
+
+        errors: list[KinematicsError | None] = [None] * count
+        for part, at in zip(parts, where, strict=True):
+            for pos, k in enumerate(at):
+                errors[int(k)] = part.errors[pos]
+        return parts[0]._built(gather, errors)
 
     @staticmethod
     def concatenate(parts: Sequence[Solutions]) -> Solutions:
         """One batch of the problems of ``parts``, in order."""
+        return parts[0]._built(
+            lambda f: np.concatenate([f(p) for p in parts]), [e for p in parts for e in p.errors]
+        )
+
+    def _built(
+        self, arrays: Callable[[_Field], np.ndarray], errors: Sequence[KinematicsError | None]
+    ) -> Solutions:
+        """Solutions whose every array is ``arrays(field)``, with ``errors`` and these offsets and task."""
         return Solutions(
-            q=np.concatenate([p.q for p in parts]),
-            rotation=np.concatenate([p.rotation for p in parts]),
-            translation=np.concatenate([p.translation for p in parts]),
-            p_m=np.concatenate([p.p_m for p in parts]),
-            residual=np.concatenate([p.residual for p in parts]),
-            condition=np.concatenate([p.condition for p in parts]),
-            jacobians=tuple(np.concatenate(js) for js in zip(*(p.jacobians for p in parts), strict=True)),
-            system=np.concatenate([p.system for p in parts]),
-            system_inverse=np.concatenate([p.system_inverse for p in parts]),
-            errors=tuple(e for p in parts for e in p.errors),
-            limb_offsets=parts[0].limb_offsets,
-            task=parts[0].task,
+            q=arrays(lambda s: s.q),
+            rotation=arrays(lambda s: s.rotation),
+            translation=arrays(lambda s: s.translation),
+            p_m=arrays(lambda s: s.p_m),
+            residual=arrays(lambda s: s.residual),
+            condition=arrays(lambda s: s.condition),
+            jacobians=tuple(arrays(_jacobian(i)) for i in range(len(self.jacobians))),
+            system=arrays(lambda s: s.system),
+            system_inverse=arrays(lambda s: s.system_inverse),
+            errors=tuple(errors),
+            limb_offsets=self.limb_offsets,
+            task=self.task,
         )
 
     def first_error(self) -> KinematicsError | None:
@@ -135,3 +141,8 @@ class Solutions:
             condition=float(self.condition[k]),
             tangent=self.system_inverse[k][:, -3:].copy() if self.task else None,
         )
+
+
+def _jacobian(i: int) -> _Field:
+    """Limb ``i``'s Jacobians of :class:`Solutions`, as a field."""
+    return lambda s: s.jacobians[i]

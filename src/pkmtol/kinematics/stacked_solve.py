@@ -7,8 +7,20 @@ import numpy as np
 from pkmtol.kinematics import acceleration
 
 
-def newton_steps(a: np.ndarray, res: np.ndarray) -> np.ndarray:
-    """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise."""
+def newton_steps(a: np.ndarray, res: np.ndarray, compiled: bool = False) -> np.ndarray:
+    """Newton steps (b, free): stacked LU for square systems, stacked QR least squares otherwise.
+
+    ``compiled``: square systems by the LU of :mod:`pkmtol.kinematics.jit_kernels` when the kernels
+    run (LAPACK's otherwise); an exactly singular matrix gets the least-squares step either way.
+    """
+    kernels = acceleration.kernels() if compiled else None
+    if kernels is not None and a.shape[1] == a.shape[2]:
+        steps = np.empty(a.shape[:2])
+        singular = np.zeros(len(a), dtype=bool)
+        kernels.solve_steps(np.ascontiguousarray(a), np.ascontiguousarray(res), steps, singular)
+        for k in np.flatnonzero(singular):
+            steps[k] = np.linalg.lstsq(a[k], res[k], rcond=None)[0]
+        return steps
     if a.shape[1] == a.shape[2]:
         try:
             return np.linalg.solve(a, res[:, :, None])[:, :, 0]
