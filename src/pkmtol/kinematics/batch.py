@@ -81,7 +81,7 @@ class BatchChain:
         self._skew_p = pin.skew(self.p_ref)
         self._cols = [slice(int(a), int(b)) for a, b in zip(self.offsets[:-1], self.offsets[1:], strict=True)]
         self._offsets = np.asarray(self.offsets, dtype=np.int64)
-        self.frames = BatchFrames(mechanism, self.models, self.datas, self.fids)
+        self.frames = BatchFrames(self.chain)
 
     # --- public ---------------------------------------------------------------------------
 

@@ -1,7 +1,9 @@
 """The frames a batched solve reads at each Newton iterate, and the perturbed machines behind them.
 
 :class:`BatchFrames` gives :class:`~pkmtol.kinematics.batch.BatchChain` every limb's platform frame
-(placement and LOCAL Jacobian) and each internal loop's frames a and b, for many problems at once:
+(placement and LOCAL Jacobian) and each internal loop's frames a and b (the order of
+:attr:`ClosedChain.frame_tables <pkmtol.kinematics.closed_chain.ClosedChain.frame_tables>`), for many
+problems at once:
 from the compiled kernels (:mod:`pkmtol.kinematics.frame_tables`, the ``fast`` extra) or from
 Pinocchio, one ``Data`` per limb reused for every pose. A perturbed machine (the exact
 verification, a calibration study) is a table of joint placements ``jointPlacements[j] · exp6(ε_j)``
@@ -19,8 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.kinematics import acceleration, se3_batch
-from pkmtol.kinematics.frame_tables import FrameTables
-from pkmtol.model.mechanism import Mechanism
+from pkmtol.kinematics.closed_chain import ClosedChain
 
 #: A loop's frames over a batch: ``(oMa, oMb, J_a, J_b)``, (b, 4, 4) and (b, 6, nq) each.
 LoopFrames = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -64,34 +65,20 @@ class BatchFrames:
     """The frames of one mechanism's limbs for batches of problems (not thread-safe: reused workspaces).
 
     Args:
-        mechanism: The mechanism.
-        models: The limb models to evaluate (nominal, or a per-pose solver's replacements).
-        datas: One ``Data`` per limb model, reused for every pose.
-        fids: Each limb's platform frame id.
+        chain: The per-pose solver whose limb models (nominal, or replacements) and ``Data`` (one
+            per limb, reused for every pose) to evaluate; its frame tables are built once.
     """
 
-    def __init__(
-        self,
-        mechanism: Mechanism,
-        models: Sequence[pin.Model],
-        datas: Sequence[pin.Data],
-        fids: Sequence[int],
-    ) -> None:
-        self.mechanism = mechanism
-        self.models = list(models)
-        self.datas = list(datas)
-        self.fids = list(fids)
-        offsets = np.concatenate([[0], np.cumsum([lb.nq for lb in mechanism.limbs])])
-        self._cols = [slice(int(a), int(b)) for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
-        self._width = max(limb.nq for limb in mechanism.limbs)
-        # the frames read: every limb's platform frame, then each loop's frames a and b
-        frames = [(i, fid) for i, fid in enumerate(self.fids)] + [
-            (i, f)
-            for i, limb in enumerate(mechanism.limbs)
-            for lp in limb.loops
-            for f in (lp.frame_a, lp.frame_b)
+    def __init__(self, chain: ClosedChain) -> None:
+        self.mechanism = chain.mechanism
+        self.models = chain.models
+        self.datas = chain.datas
+        self.fids = chain.fids
+        self.tables = chain.frame_tables
+        self._cols = [
+            slice(int(a), int(b)) for a, b in zip(chain.offsets[:-1], chain.offsets[1:], strict=True)
         ]
-        self.tables = FrameTables.of(self.models, frames)
+        self._width = max(limb.nq for limb in self.mechanism.limbs)
         # the scratch models of each slot: a perturbed limb of slot s runs on _slots[i][s]
         self._slots: list[list[pin.Model]] = [[] for _ in self.models]
 

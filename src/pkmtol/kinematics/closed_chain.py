@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -32,6 +33,7 @@ from pkmtol.exceptions import (
     SingularPoseError,
     UnreachableTargetError,
 )
+from pkmtol.kinematics.frame_tables import FrameTables
 from pkmtol.kinematics.loops import frame_placements, loop_gaps, loop_layout, loop_rows
 from pkmtol.model.mechanism import Mechanism
 
@@ -116,6 +118,21 @@ class ClosedChain:
         self._failed_q: np.ndarray | None = None  # last iterate of a solve that did not converge
 
     # --- public ---------------------------------------------------------------------------
+
+    @cached_property
+    def frame_tables(self) -> FrameTables:
+        """Joint and frame tables of :attr:`models` for the compiled kernels (made on first use).
+
+        The frames: every limb's platform frame, then each internal loop's frames a and b, limb
+        by limb (the order of :class:`pkmtol.kinematics.batch_frames.BatchFrames`).
+        """
+        frames = [(i, fid) for i, fid in enumerate(self.fids)] + [
+            (i, f)
+            for i, limb in enumerate(self.mechanism.limbs)
+            for lp in limb.loops
+            for f in (lp.frame_a, lp.frame_b)
+        ]
+        return FrameTables.of(self.models, frames)
 
     def home(self) -> np.ndarray:
         """Home configuration refined to exact closure, shape (Σ nq,).
