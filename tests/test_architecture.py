@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -160,6 +161,21 @@ def test_import_pkmtol_loads_no_stage():
     code = f"import sys, pkmtol; print(sorted(m for m in sys.modules if m.startswith({heavy})))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_the_allocate_command_runs_without_scipy_optimize(tmp_path):
+    # the sign-off's quantile column found its roots with scipy.optimize.brentq, whose import cost
+    # a sixth of the command's CPU; its safeguarded Newton needs none of it
+    code = (
+        "import sys; from pkmtol.cli import main; "
+        f"main(['allocate', {str(SRC.parent / 'robots' / 'r2rps_ups')!r}, '--no-figures', '--no-progress', "
+        f"'--samples', '20000', '--exact-samples', '0', '--out', {str(tmp_path)!r}]); "
+        "print(sorted(m for m in ('scipy.stats', 'scipy.optimize', 'scipy.integrate') if m in sys.modules))"
+    )
+    env = {**os.environ, "PKMTOL_JIT": "0"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    assert (tmp_path / "allocation.json").is_file()
 
 
 def test_the_allocate_command_starts_without_the_optional_scipy_packages():

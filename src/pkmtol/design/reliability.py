@@ -10,7 +10,6 @@ the quadrature as one array expression).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -194,30 +193,56 @@ def exact_reliability_imhof(eigenvalues: np.ndarray, threshold_m: float) -> floa
     return 1.0 - p_exceed
 
 
-def exact_distribution(covariance: np.ndarray) -> Callable[[float], float]:
+def exact_distribution(covariance: np.ndarray) -> ExactDistribution:
     """``q ↦ P(‖x‖ ≤ q)`` for ``x ~ N(0, Σ)`` in 3-D: :func:`exact_reliability` as a function of ``q``.
 
     The eigen-decomposition and the sphere nodes are computed once, so that a root finder (a
-    quantile) evaluates it cheaply; same quadrature, same accuracy.
+    quantile) evaluates it cheaply; same quadrature, same accuracy. The result also gives the
+    density ``dP/dq`` (:meth:`ExactDistribution.density`).
 
     >>> F = exact_distribution(np.eye(3) * 1e-10)
     >>> round(F(2e-5), 9) == round(exact_reliability(np.eye(3) * 1e-10, 2e-5)[0], 9)
     True
     """
-    lam = np.clip(np.linalg.eigvalsh(np.asarray(covariance, dtype=float)), 0.0, None)
-    if lam.max() <= 0.0:
-        return lambda q: 1.0 if q >= 0 else 0.0
-    u, w = _NODES
-    inv_q = 1.0 / np.maximum((u**2) @ lam, lam.max() * 1e-300)  # 1 / uᵀΛu
+    return ExactDistribution(np.asarray(covariance, dtype=float))
 
-    root_inv = np.sqrt(inv_q)
-    c = math.sqrt(2.0 / math.pi)
 
-    def cdf(q: float) -> float:
+class ExactDistribution:
+    """The distribution of ``‖x‖``, ``x ~ N(0, Σ)`` in 3-D (see :func:`exact_distribution`).
+
+    Per sphere node ``u``, ``‖x‖`` along ``u`` is a χ₃ scaled by ``√(uᵀΛu)``; the distribution is
+    the nodes' weighted sum: ``F(q) = Σ w F_χ₃(q / √(uᵀΛu))`` and ``f(q) = dF/dq``.
+
+    Args:
+        covariance: Shape (3, 3): ``Σ`` [m²].
+    """
+
+    def __init__(self, covariance: np.ndarray) -> None:
+        lam = np.clip(np.linalg.eigvalsh(covariance), 0.0, None)
+        self.degenerate = bool(lam.max() <= 0.0)  # x = 0: ‖x‖ ≤ q for every q ≥ 0
+        u, self._w = _NODES
+        if self.degenerate:
+            self._root_inv = np.zeros(len(self._w))
+        else:  # 1 / √(uᵀΛu)
+            self._root_inv = np.sqrt(1.0 / np.maximum((u**2) @ lam, lam.max() * 1e-300))
+
+    def __call__(self, q: float) -> float:
+        """``P(‖x‖ ≤ q)``."""
+        if self.degenerate:
+            return 1.0 if q >= 0 else 0.0
         if q <= 0:
             return 0.0
         # F_χ₃(y) = P(3/2, y²/2) = erf(y/√2) − √(2/π) y e^{−y²/2}, cheaper than gammainc
-        y = q * root_inv
-        return float(w @ (special.erf(y / math.sqrt(2.0)) - c * y * np.exp(-0.5 * y * y)))
+        y = q * self._root_inv
+        return float(self._w @ (special.erf(y / math.sqrt(2.0)) - _C_CHI3 * y * np.exp(-0.5 * y * y)))
 
-    return cdf
+    def density(self, q: float) -> float:
+        """``dP(‖x‖ ≤ q)/dq`` [1/m]: ``Σ w f_χ₃(y) / √(uᵀΛu)``, ``f_χ₃(y) = √(2/π) y² e^{−y²/2}``."""
+        if self.degenerate or q <= 0:
+            return 0.0
+        y = q * self._root_inv
+        return float(self._w @ (_C_CHI3 * y * y * np.exp(-0.5 * y * y) * self._root_inv))
+
+
+#: √(2/π), of the χ₃ distribution's CDF and density.
+_C_CHI3 = math.sqrt(2.0 / math.pi)
