@@ -266,7 +266,8 @@ class BatchChain:
         The figures a failed problem reports follow every rounding of the kinematics: a solve that
         runs out of iterations made Newton wander, and the condition number of a singular Jacobian
         is round-off over round-off. With the compiled kernels a failed problem is therefore solved
-        once more on Pinocchio's kinematics, so that its error says what the per-pose solver says.
+        once more with the per-pose solver's numerics (Pinocchio's kinematics, LAPACK's steps), so
+        that its error says what the per-pose solver says.
         """
         sols = self._lockstep(q0, free, targets, perturbation, what, False, None)
         failed = np.flatnonzero(~sols.ok)

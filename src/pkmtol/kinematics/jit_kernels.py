@@ -71,6 +71,18 @@ def _coefficients(theta: float) -> tuple[float, float, float]:
 
 
 @_jit
+def _add_half_skew(m: np.ndarray, v: np.ndarray) -> None:
+    """``m += ½ [v]×`` for a 3 × 3 ``m`` and a 3-vector ``v``."""
+    h0, h1, h2 = 0.5 * v[0], 0.5 * v[1], 0.5 * v[2]
+    m[0, 1] -= h2
+    m[0, 2] += h1
+    m[1, 0] += h2
+    m[1, 2] -= h0
+    m[2, 0] -= h1
+    m[2, 1] += h0
+
+
+@_jit
 def _log6(re: np.ndarray, pe: np.ndarray, nu: np.ndarray, jl: np.ndarray) -> bool:
     """``log6`` and ``Jlog6`` of one placement into ``nu`` (6,) and ``jl`` (6, 6); True near π."""
     a0 = 0.5 * (re[2, 1] - re[1, 2])
@@ -105,20 +117,8 @@ def _log6(re: np.ndarray, pe: np.ndarray, nu: np.ndarray, jl: np.ndarray) -> boo
         for j in range(3):
             j3[i, j] = beta * w[i] * w[j]
             cm[i, j] = v3 * w[j] + beta * w[i] * pe[j]
-    hw0, hw1, hw2 = 0.5 * w[0], 0.5 * w[1], 0.5 * w[2]
-    j3[0, 1] -= hw2
-    j3[0, 2] += hw1
-    j3[1, 0] += hw2
-    j3[1, 2] -= hw0
-    j3[2, 0] -= hw1
-    j3[2, 1] += hw0
-    hp0, hp1, hp2 = 0.5 * pe[0], 0.5 * pe[1], 0.5 * pe[2]
-    cm[0, 1] -= hp2
-    cm[0, 2] += hp1
-    cm[1, 0] += hp2
-    cm[1, 2] -= hp0
-    cm[2, 0] -= hp1
-    cm[2, 1] += hp0
+    _add_half_skew(j3, w)
+    _add_half_skew(cm, pe)
     for i in range(3):
         j3[i, i] += alpha
         cm[i, i] += wp * beta
