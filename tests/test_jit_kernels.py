@@ -232,3 +232,70 @@ def test_newton_steps_match_lapack_and_flag_singular_matrices():
     compiled = newton_steps(a, r, compiled=True)
     np.testing.assert_allclose(compiled, newton_steps(a, r), rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(compiled[3], np.linalg.lstsq(a[3], r[3], rcond=None)[0], rtol=0, atol=1e-12)
+
+
+def test_frames_of_every_kind_of_one_dof_joint_are_pinocchios():
+    # unaligned and x/y/z revolute and prismatic joints, a branch (a tree limb) and a frame on the
+    # root, in the second of two limbs (its joints start after the first limb's)
+    rng = np.random.default_rng(8)
+
+    def placement():
+        return pin.SE3(pin.exp3(rng.standard_normal(3)), rng.standard_normal(3))
+
+    def unit():
+        v = rng.standard_normal(3)
+        return v / np.linalg.norm(v)
+
+    model = pin.Model()
+    parent = 0
+    for k, joint in enumerate(
+        [pin.JointModelRX(), pin.JointModelRevoluteUnaligned(unit()), pin.JointModelPY()]
+        + [pin.JointModelPrismaticUnaligned(unit())]
+    ):
+        parent = model.addJoint(parent, joint, placement(), f"j{k}")
+    branch = model.addJoint(2, pin.JointModelRZ(), placement(), "b0")  # off the second joint
+    branch = model.addJoint(branch, pin.JointModelPX(), placement(), "b1")
+    tip = model.addFrame(pin.Frame("tip", parent, 0, placement(), pin.FrameType.OP_FRAME))
+    side = model.addFrame(pin.Frame("side", branch, 0, placement(), pin.FrameType.OP_FRAME))
+    base = model.addFrame(pin.Frame("base", 0, 0, placement(), pin.FrameType.OP_FRAME))
+    first = build_first_limb(rng)
+    models = [first, model]
+    frames = [(0, first.nframes - 1), (1, tip), (1, side), (1, base), (0, 0)]
+    tables = FrameTables.of(models, frames)
+    offsets = [0, first.nq, first.nq + model.nq]
+    q = rng.uniform(-2.0, 2.0, (5, offsets[-1]))
+    eps = rng.standard_normal((5, offsets[-1], 6)) * 1e-2
+    nominal = (tables.placements, np.zeros(5, dtype=np.int64))
+    for tab, which in (nominal, (tables.perturbed(jit_kernels, eps), np.arange(5))):
+        h, jac = tables.evaluate(jit_kernels, q, np.arange(5), tab, which)
+        for s in range(5):
+            for f, (i, fid) in enumerate(frames):
+                m = models[i].copy()
+                for j in range(1, m.njoints):
+                    m.jointPlacements[j] = pin.SE3(tab[which[s], offsets[i] + j - 1])
+                data = m.createData()
+                pin.computeJointJacobians(m, data, q[s, offsets[i] : offsets[i + 1]])
+                want = pin.updateFramePlacement(m, data, fid).homogeneous
+                np.testing.assert_allclose(h[f, s], want, atol=1e-13)
+                want_jac = pin.getFrameJacobian(m, data, fid, pin.LOCAL)
+                np.testing.assert_allclose(jac[f, s, :, : m.nq], want_jac, atol=1e-13)
+
+
+def build_first_limb(rng: np.random.Generator) -> pin.Model:
+    """A three-joint serial limb (RY, PZ, RX) ending in a frame."""
+    model = pin.Model()
+    parent = 0
+    for k, joint in enumerate([pin.JointModelRY(), pin.JointModelPZ(), pin.JointModelRX()]):
+        parent = model.addJoint(
+            parent, joint, pin.SE3(pin.exp3(rng.standard_normal(3)), rng.standard_normal(3)), f"a{k}"
+        )
+    model.addFrame(
+        pin.Frame(
+            "end",
+            parent,
+            0,
+            pin.SE3(pin.exp3(rng.standard_normal(3)), rng.standard_normal(3)),
+            pin.FrameType.OP_FRAME,
+        )
+    )
+    return model

@@ -30,7 +30,7 @@ class FrameTables:
         revolute: Shape (n,): True for a revolute joint, False for a prismatic one.
         axis: Shape (n, 3): unit joint axes in the joint frames.
         placements: Shape (1, n, 4, 4): the models' joint placements in their parents.
-        f_joint: Shape (F,): each frame's parent joint.
+        f_joint: Shape (F,): each frame's parent joint (−1: the root K).
         f_place: Shape (F, 4, 4): each frame's placement in its parent joint.
         f_start: Shape (F,): the first joint of each frame's limb.
         f_support: Shape (F, w): the joints of its limb that move each frame (``w`` the widest limb).
@@ -77,7 +77,7 @@ class FrameTables:
             frame = model.frames[fid]
             support = np.zeros(width, dtype=np.bool_)
             j = int(frame.parentJoint)
-            f_joint.append(int(offsets[i]) + j - 1)
+            f_joint.append(int(offsets[i]) + j - 1 if j > 0 else -1)
             while j > 0:
                 support[j - 1] = True
                 j = model.parents[j]

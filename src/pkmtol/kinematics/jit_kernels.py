@@ -427,7 +427,7 @@ def frames(
         parent: Shape (n,): each joint's parent joint (−1: the root); parents come first.
         revolute: Shape (n,): revolute (True) or prismatic joint.
         axis: Shape (n, 3): unit joint axes in the joint frames.
-        f_joint: Shape (F,): each frame's parent joint.
+        f_joint: Shape (F,): each frame's parent joint (−1: the root K; the frame is then fixed).
         f_place: Shape (F, 4, 4): each frame's placement in its parent joint.
         f_start: Shape (F,): the first joint of each frame's limb (its Jacobian's column 0).
         f_support: Shape (F, w): which of its limb's joints move each frame.
@@ -435,8 +435,10 @@ def frames(
         jac: Shape (F, b, 6, w): written in the supported columns (the caller zeroes the rest).
     """
     n = parent.shape[0]
-    rot = np.empty((n, 3, 3))
-    pos = np.empty((n, 3))
+    rot = np.zeros((n + 1, 3, 3))  # oMi of every joint, then the root's identity
+    pos = np.zeros((n + 1, 3))
+    for r in range(3):
+        rot[n, r, r] = 1.0
     lr = np.empty((3, 3))
     lt = np.empty(3)
     rq = np.empty((3, 3))
@@ -481,7 +483,7 @@ def frames(
                         )
                     pos[j, r] = rot[p, r, 0] * lt[0] + rot[p, r, 1] * lt[1] + rot[p, r, 2] * lt[2] + pos[p, r]
         for f in range(f_joint.shape[0]):
-            pj = f_joint[f]
+            pj = f_joint[f] if f_joint[f] >= 0 else n  # a frame on the root K: the identity at n
             for r in range(3):
                 for col in range(3):
                     rf[r, col] = (
