@@ -299,3 +299,30 @@ def build_first_limb(rng: np.random.Generator) -> pin.Model:
         )
     )
     return model
+
+
+def test_a_subset_of_machines_keeps_its_placements_on_either_path(robot, monkeypatch):
+    # the second solve of failed problems takes a subset of the machines onto slot models
+    mech, chain, _, sols = robot
+    pset = parameter_set(mech, "urdf")
+    eta = np.random.default_rng(9).standard_normal((6, len(pset))) * 1e-4
+    eps, _ = pset.perturbations(eta, mech)
+    index = np.array([4, 1])
+    compiled = BatchChain(mech, check_limits=False).frames
+    sub = compiled.slots_of(compiled.perturb(eps, 6), index)
+    monkeypatch.setattr(acceleration, "kernels", lambda: None)
+    plain = BatchChain(mech, check_limits=False).frames
+    full = plain.perturb(eps, 6)
+    sub_plain = plain.slots_of(full, index)
+    for i in range(len(mech.limbs)):
+        for pos, k in enumerate(index):
+            assert sub_plain.models[i][pos] is full.models[i][k]
+            for j in range(1, mech.limbs[i].model.njoints):
+                np.testing.assert_allclose(
+                    sub.models[i][pos].jointPlacements[j].homogeneous,
+                    sub_plain.models[i][pos].jointPlacements[j].homogeneous,
+                    atol=1e-15,
+                )
+        assert (sub.attach[i] is None) == (sub_plain.attach[i] is None)
+        if sub.attach[i] is not None:
+            np.testing.assert_array_equal(sub.attach[i], sub_plain.attach[i])

@@ -113,15 +113,18 @@ class BatchFrames:
         return Perturbation(None, self.tables.perturbed(kernels, every), every, attach, loops)
 
     def slots_of(self, perturbation: Perturbation | None, index: np.ndarray) -> Perturbation | None:
-        """The perturbation of problems ``index`` with slot models (for Pinocchio's kinematics)."""
+        """The perturbation of problems ``index`` with slot models (for Pinocchio's kinematics).
+
+        Made with the kernels (:meth:`perturb`), the joint errors are in ``joint_eps`` and the
+        slots are written from them; made without, the problems' slot models are taken as they are.
+        """
         if perturbation is None:
             return None
-        if perturbation.joint_eps is None:
-            assert perturbation.models is not None  # noqa: S101 - one of the two is always made
-            models = [[ms[k] for k in index] for ms in perturbation.models]
-        else:
+        if perturbation.joint_eps is not None:
             e = perturbation.joint_eps[index]
             models = [self._slot_models(i, e[:, cols]) for i, cols in enumerate(self._cols)]
+        else:
+            models = [[ms[k] for k in index] for ms in perturbation.models or []]
         return Perturbation(
             models,
             None,
