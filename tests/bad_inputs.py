@@ -10,6 +10,7 @@ command line through :func:`pkmtol.cli.run` (which lets the error propagate inst
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from collections.abc import Callable
@@ -37,6 +38,7 @@ from pkmtol import (
 from pkmtol import exceptions as E
 from pkmtol.cli import run as cli_run
 from pkmtol.design.budget import check_memory
+from pkmtol.kinematics import acceleration
 from pkmtol.present.run_folder import RunFolder
 from pkmtol.units import parse_length
 
@@ -203,6 +205,19 @@ def _missing_mesh(tmp: Path) -> Any:
         return load_mechanism(folder)
 
 
+def jit_switch_misspelt(tmp: Path) -> Any:
+    """The compiled kernels' switch set to a value that is neither on nor off (read on first solve)."""
+    before = os.environ.get(acceleration.ENVIRONMENT)
+    os.environ[acceleration.ENVIRONMENT] = "maybe"
+    try:
+        return acceleration.kernels.__wrapped__()  # the switch as a new process reads it
+    finally:
+        if before is None:
+            del os.environ[acceleration.ENVIRONMENT]
+        else:
+            os.environ[acceleration.ENVIRONMENT] = before
+
+
 L4_LAST = "  [0.0, 0.0, 0.0, 0.0],\n]\nend = [0.0, 90.0]\nlimits = [[-90.0, 90.0], [-90.0, 90.0], [0.3, 1.6]]"
 L4_U1 = '<joint name="limb4_u1" type="revolute">'
 MF, UE, IA, UK = E.MechanismFormatError, E.URDFError, E.InvalidArgumentError, E.UnknownKeyError
@@ -337,6 +352,7 @@ CASES: list[Case] = [
     Case("Command line", "`errors --json` into a folder that does not exist", cli("errors", "{robot}", "--json", "{tmp}/no/e.json"), E.OutputError, ("e.json", "does not exist")),
     Case("Command line", "`new` with a rod shorter than the radii allow", cli("new", "sprint_z3", "--rod-length", "0.05", "--out", "{tmp}/s"), IA, ("--rod-length 0.05", "must be longer"), {"argument": "--rod-length"}),
     Case("Command line", "`new` into a folder that is not empty", new_in_taken, E.OutputError, ("taken", "not an empty folder")),
+    Case("Command line", "`PKMTOL_JIT=maybe` in the environment", jit_switch_misspelt, IA, ("PKMTOL_JIT = 'maybe'", "set it to 0"), {"argument": "PKMTOL_JIT"}),
     Case("Command line", "`new` with a task space the robot cannot reach", cli("new", "tricept", "--task-radius", "1.5", "--out", "{tmp}/big", "--no-progress"), E.RobotCheckError, ("tricept", "117 of 147 task-space points are not reachable"), {"family": "tricept"}),
 ]  # fmt: skip
 

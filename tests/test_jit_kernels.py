@@ -6,6 +6,8 @@ that turns the kernels off."""
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -14,6 +16,7 @@ import pinocchio as pin
 import pytest
 
 from pkmtol.error_model.parameters import parameter_set
+from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.kinematics import acceleration
 from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain
@@ -159,6 +162,12 @@ def test_the_kernels_can_be_turned_off(monkeypatch):
     for off in ("0", "off", "False", " no "):
         monkeypatch.setenv(acceleration.ENVIRONMENT, off)
         assert load() is None
+    for on in ("1", "", "yes", "ON"):
+        monkeypatch.setenv(acceleration.ENVIRONMENT, on)
+        assert load() is jit_kernels
+    monkeypatch.setenv(acceleration.ENVIRONMENT, "fals")
+    with pytest.raises(InvalidArgumentError, match=r"PKMTOL_JIT = 'fals': set it to 0 .* or 1"):
+        load()
     monkeypatch.setenv(acceleration.ENVIRONMENT, "1")
     monkeypatch.setitem(sys.modules, "pkmtol.kinematics.jit_kernels", None)  # as without numba
     assert load() is None
@@ -326,3 +335,22 @@ def test_a_subset_of_machines_keeps_its_placements_on_either_path(robot, monkeyp
         assert (sub.attach[i] is None) == (sub_plain.attach[i] is None)
         if sub.attach[i] is not None:
             np.testing.assert_array_equal(sub.attach[i], sub_plain.attach[i])
+
+
+def test_a_misspelt_switch_is_refused_by_the_command(tmp_path):
+    env = {**os.environ, acceleration.ENVIRONMENT: "maybe"}
+    out = tmp_path / "out"
+    cmd = [
+        sys.executable,
+        "-m",
+        "pkmtol.cli",
+        "allocate",
+        str(ROOT / "robots" / "r2rps_ups"),
+        "--out",
+        str(out),
+    ]
+    run = subprocess.run([*cmd, "--no-figures", "--no-progress"], capture_output=True, text=True, env=env)
+    assert run.returncode != 0
+    assert "PKMTOL_JIT = 'maybe': set it to 0" in run.stderr
+    assert "Traceback" not in run.stderr
+    assert not (out / "allocation.json").exists()

@@ -12,8 +12,13 @@ import os
 from functools import cache
 from types import ModuleType
 
-#: Environment variable that turns the kernels off: ``0``, ``false``, ``no`` or ``off``.
+from pkmtol.exceptions import InvalidArgumentError
+
+#: Environment variable that turns the kernels off (``0``, ``false``, ``no``, ``off``) or leaves
+#: them on (unset, empty, ``1``, ``true``, ``yes``, ``on``); any other value is refused.
 ENVIRONMENT = "PKMTOL_JIT"
+_OFF = frozenset({"0", "false", "no", "off"})
+_ON = frozenset({"", "1", "true", "yes", "on"})
 
 
 @cache
@@ -23,9 +28,20 @@ def kernels() -> ModuleType | None:
     None when numba is not installed, when :data:`ENVIRONMENT` turns the kernels off, or when
     numba has nowhere to cache them (the package's folder and numba's user cache both read-only;
     set ``NUMBA_CACHE_DIR`` to a writable folder).
+
+    Raises:
+        InvalidArgumentError: :data:`ENVIRONMENT` holds a value that is neither on nor off.
     """
-    if os.environ.get(ENVIRONMENT, "1").strip().lower() in {"0", "false", "no", "off"}:
+    value = os.environ.get(ENVIRONMENT, "")
+    if value.strip().lower() in _OFF:
         return None
+    if value.strip().lower() not in _ON:
+        raise InvalidArgumentError(
+            ENVIRONMENT,
+            value,
+            "set it to 0 (the numpy path) or 1 (the compiled kernels, the default when numba is "
+            "installed), or unset it",
+        )
     try:
         return importlib.import_module("pkmtol.kinematics.jit_kernels")
     except ImportError:  # numba is not installed
