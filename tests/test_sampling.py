@@ -175,3 +175,15 @@ def test_mode_verification_memory_does_not_grow_with_samples(monkeypatch):
     small, large = peak(4000), peak(32_000)
     # one piece, the gathered maps alone took 2 × 24 bytes × 60 parameters per sample
     assert (large - small) / 28_000 < BYTES_PER_SAMPLE, (small, large)
+
+
+def test_vector_norms_are_numpys_norms_bit_for_bit():
+    # Δλ of every Monte Carlo sample: the same numbers as np.linalg.norm over the last axis
+    from pkmtol.error_model.accuracy import vector_norms
+
+    rng = np.random.default_rng(11)
+    for shape in ((1000, 3), (7, 50, 3), (3,)):
+        x = rng.standard_normal(shape) * 10.0 ** rng.uniform(-9, 3, shape)
+        np.testing.assert_array_equal(vector_norms(x), np.linalg.norm(x, axis=-1))
+    view = rng.standard_normal((100, 6))[:, 3:]  # a strided view, as a tilt block
+    np.testing.assert_array_equal(vector_norms(view), np.linalg.norm(view, axis=1))

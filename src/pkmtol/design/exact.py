@@ -22,6 +22,7 @@ from scipy import special
 
 from pkmtol.design.reliability import exact_reliability_many
 from pkmtol.design.verification import LINEAR_CHUNK, cyclic_products, failure_counts, sample_errors
+from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.executor import Executor, map_chunks
 
@@ -282,8 +283,8 @@ def claimed_vs_true(
                     e_w = e_w + _noise_draws(extra_cov_worst, count, rng)
                 if extra_cov_task is not None:
                     e_t = e_t + _noise_draws(extra_cov_task, count, rng)
-                fail_w += int(np.sum(np.linalg.norm(e_w, axis=1) > target_m))
-                fail_t += int(np.sum(np.linalg.norm(e_t, axis=1) > target_m))
+                fail_w += int(np.sum(vector_norms(e_w) > target_m))
+                fail_t += int(np.sum(vector_norms(e_t) > target_m))
             for fails in (fail_w, fail_t):
                 f = failure_counts(fails, samples)
                 cells.append((f.reliability, 1.0 - f.failure_ci95[1], 1.0 - f.failure_ci95[0]))

@@ -31,6 +31,7 @@ from pkmtol.calibration.maps import PoseMaps
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.study import calibrate_and_evaluate
 from pkmtol.design.verification import Verification, cyclic_products, failure_stats, sample_errors
+from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
@@ -153,12 +154,12 @@ def verify_mode(
         e = cyclic_products(maps.position, delta, start)
         if M:
             e += cyclic_products(maps.position_noise, noise, start)
-        dlam[rows] = np.linalg.norm(e, axis=1)
+        dlam[rows] = vector_norms(e)
         if tilt is not None and tmap is not None and tnoise is not None:
             t = cyclic_products(tmap, delta, start)
             if M:
                 t += cyclic_products(tnoise, noise, start)
-            tilt[rows] = np.linalg.norm(t, axis=1)
+            tilt[rows] = vector_norms(t)
         if start < head:
             delta_head[start : start + count] = delta[: head - start]
             noise_head[start : start + count] = noise[: head - start]

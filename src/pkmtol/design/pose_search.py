@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import pkmtol.values as values
-from pkmtol.error_model.accuracy import first_max, grid_norm_moments
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, vector_norms
 
 #: Samples drawn and evaluated at a time (up to it, one chunk: exactly the unchunked computation).
 SEARCH_CHUNK = 16_384
@@ -52,7 +52,7 @@ def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator)
         eta = rng.standard_normal((samples, n))
         sampled = np.empty(m)
         for j in range(m):
-            sampled[j] = np.linalg.norm(eta @ J[j].T, axis=1).std(ddof=1)
+            sampled[j] = vector_norms(eta @ J[j].T).std(ddof=1)
     else:
         sampled = _chunked_sigma(J, samples, rng)
     moments = grid_norm_moments(J)

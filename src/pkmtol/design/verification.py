@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 import pkmtol.values as values
+from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import ConvergenceError, KinematicsError
@@ -291,7 +292,7 @@ def _linear_dlam(
     for start in range(0, samples, LINEAR_CHUNK):
         count = min(LINEAR_CHUNK, samples - start)
         eta = sample_errors(distribution, sigma, count, rng)
-        dlam[start : start + count] = np.linalg.norm(cyclic_products(Jc, eta, start), axis=1)
+        dlam[start : start + count] = vector_norms(cyclic_products(Jc, eta, start))
         if start < keep:
             head.append(eta[: keep - start])
     return dlam, (np.concatenate(head) if head else np.zeros((0, Jc.shape[2])))

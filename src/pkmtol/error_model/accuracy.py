@@ -76,3 +76,17 @@ def first_max(values: np.ndarray) -> int:
     v = np.asarray(values, dtype=float)
     top = float(v.max())
     return int(np.flatnonzero(v >= top - TIE_TOLERANCE * abs(top))[0])
+
+
+def vector_norms(x: np.ndarray) -> np.ndarray:
+    """Euclidean norms of 3-vectors: ``x`` of shape (..., 3) → (...); e.g. Δλ = ‖e‖ of P's errors.
+
+    Component by component: the numbers of ``np.linalg.norm(x, axis=-1)`` (the same sum of three
+    squares, in the same order), without its reduction over an axis of length 3, which costs
+    several times the arithmetic on the millions of rows of a Monte Carlo run.
+
+    >>> vector_norms(np.array([[3.0, 4.0, 12.0], [0.0, 0.0, -2.0]])).tolist()
+    [13.0, 2.0]
+    """
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
