@@ -66,7 +66,8 @@ class BatchFrames:
 
     Args:
         chain: The per-pose solver whose limb models (nominal, or replacements) and ``Data`` (one
-            per limb, reused for every pose) to evaluate; its frame tables are built once.
+            per limb, reused for every pose) to evaluate; its frame tables are built on the first
+            use of the kernels, once.
     """
 
     def __init__(self, chain: ClosedChain) -> None:
@@ -74,7 +75,7 @@ class BatchFrames:
         self.models = chain.models
         self.datas = chain.datas
         self.fids = chain.fids
-        self.tables = chain.frame_tables
+        self._chain = chain
         self._cols = [
             slice(int(a), int(b)) for a, b in zip(chain.offsets[:-1], chain.offsets[1:], strict=True)
         ]
@@ -110,7 +111,7 @@ class BatchFrames:
         if kernels is None:
             return Perturbation(models, None, None, attach, loops)
         every = np.concatenate(joint_eps, axis=1)
-        return Perturbation(None, self.tables.perturbed(kernels, every), every, attach, loops)
+        return Perturbation(None, self._chain.frame_tables.perturbed(kernels, every), every, attach, loops)
 
     def slots_of(self, perturbation: Perturbation | None, index: np.ndarray) -> Perturbation | None:
         """The perturbation of problems ``index`` with slot models (for Pinocchio's kinematics).
@@ -165,8 +166,8 @@ class BatchFrames:
             if perturbation is not None and perturbation.table is not None:
                 table, which = perturbation.table, np.arange(len(q), dtype=np.int64)
             else:
-                table, which = self.tables.placements, np.zeros(len(q), dtype=np.int64)
-            h, padded_all = self.tables.evaluate(kernels, q, idx, table, which)
+                table, which = self._chain.frame_tables.placements, np.zeros(len(q), dtype=np.int64)
+            h, padded_all = self._chain.frame_tables.evaluate(kernels, q, idx, table, which)
         else:
             h, padded_all = self._frames_by_pinocchio(q, idx, perturbation)
         n_limbs = len(self.models)
@@ -196,13 +197,13 @@ class BatchFrames:
     def _frames_by_pinocchio(
         self, q: np.ndarray, idx: np.ndarray, perturbation: Perturbation | None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The frames of :attr:`_tables`' order by Pinocchio: (F, b, 4, 4) and (F, b, 6, w).
+        """The frames in the kernels' order by Pinocchio: (F, b, 4, 4) and (F, b, 6, w).
 
         The per-pose loop is the numpy path's hot spot: Pinocchio's functions bound once, each
         limb's joint values sliced once, the pose's model picked up front, and a limb without
         internal loops (the usual case) reads its platform frame alone.
         """
-        n_frames = len(self.tables.f_joint)
+        n_frames = len(self.fids) + 2 * sum(len(limb.loops) for limb in self.mechanism.limbs)
         h = np.empty((n_frames, len(idx), 4, 4))
         padded = np.zeros((n_frames, len(idx), 6, self._width))
         joint_jacobians, frame_placement = pin.computeJointJacobians, pin.updateFramePlacement
