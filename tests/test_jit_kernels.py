@@ -42,11 +42,11 @@ def robot(request):
 def systems(batch: BatchChain, q, targets, perturbation=None):
     """``_system`` at ``q`` with the kernels and without: two (res, jac, near) triples."""
     ev = batch.frames.evaluate(q, np.arange(len(q)), perturbation)
-    with_kernels = batch._system(ev.placements, ev.jacobians, ev.loop_frames, targets, ev.padded)
+    with_kernels = batch._system(ev, targets)
     original = acceleration.kernels
     acceleration.kernels = lambda: None
     try:
-        without = batch._system(ev.placements, ev.jacobians, ev.loop_frames, targets, ev.padded)
+        without = batch._system(ev, targets)
     finally:
         acceleration.kernels = original
     return with_kernels, without

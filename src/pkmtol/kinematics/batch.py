@@ -33,7 +33,7 @@ from pkmtol.exceptions import (
     UnreachableTargetError,
 )
 from pkmtol.kinematics import acceleration, se3_batch
-from pkmtol.kinematics.batch_frames import BatchFrames, LoopFrames, Perturbation, one
+from pkmtol.kinematics.batch_frames import BatchFrames, Evaluation, LoopFrames, Perturbation, one
 from pkmtol.kinematics.closed_chain import (
     MAX_ITERATIONS,
     SINGULAR_CONDITION,
@@ -165,21 +165,17 @@ class BatchChain:
     # --- internals ------------------------------------------------------------------------
 
     def _system(
-        self,
-        placements: np.ndarray,
-        jacobians: list[np.ndarray],
-        loop_frames: list[list[LoopFrames]],
-        targets: np.ndarray | None,
-        padded: np.ndarray,
+        self, frames: Evaluation, targets: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Residuals (b, rows), Jacobians (b, rows, N) and a near-half-turn mask (b,).
+        """Residuals (b, rows), Jacobians (b, rows, N) and a near-half-turn mask (b,) at ``frames``.
 
         The closure rows of every limb pair are computed together: ``e_i = oMp_0⁻¹ oMp_i``,
         ``r_i = log6(e_i)``, ``∂r_i/∂q_i = Jlog6(e_i) J_i`` and ``∂r_i/∂q_0 = −Jlog6(e_i) e_i⁻¹·J_0``;
         then each internal loop's rows (:func:`pkmtol.kinematics.loops.loop_rows_many`). With numba
         (:mod:`pkmtol.kinematics.jit_kernels`) the platform and task rows are computed pose by pose
-        in compiled code from ``padded``, the zero-padded Jacobians (``BatchFrames.evaluate``).
+        in compiled code from the zero-padded Jacobians ``frames.padded``.
         """
+        placements, jacobians, loop_frames, padded = frames
         b = len(placements[0])
         n = self._n_closure
         pairs = len(placements) - 1
@@ -313,12 +309,9 @@ class BatchChain:
         active = np.arange(count)
         converged_any: list[np.ndarray] = []
         for _ in range(MAX_ITERATIONS if count else 0):
-            placements, jacobians, loop_frames, padded = self.frames.evaluate(
-                q, active, perturbation, as_per_pose
-            )
-            res, jac, near_pi = self._system(
-                placements, jacobians, loop_frames, None if targets is None else targets[active], padded
-            )
+            frames = self.frames.evaluate(q, active, perturbation, as_per_pose)
+            placements, jacobians = frames.placements, frames.jacobians
+            res, jac, near_pi = self._system(frames, None if targets is None else targets[active])
             for k in np.flatnonzero(near_pi):
                 self._pinocchio_rows(placements, jacobians, int(k), res, jac)
             a = jac if all_free else jac[:, :, free]
@@ -413,13 +406,9 @@ class BatchChain:
         last iterate checked; the condition is that of the Jacobian after the last step, as in the
         per-pose solver.
         """
-        placements, jacobians, frames, padded = self.frames.evaluate(
-            q[None], np.zeros(1, dtype=int), perturbation, as_per_pose
-        )
-        res, jac, _ = self._system(
-            placements, jacobians, frames, None if target is None else target[None], padded
-        )
-        self._pinocchio_rows(placements, jacobians, 0, res, jac)
+        frames = self.frames.evaluate(q[None], np.zeros(1, dtype=int), perturbation, as_per_pose)
+        res, jac, _ = self._system(frames, None if target is None else target[None])
+        self._pinocchio_rows(frames.placements, frames.jacobians, 0, res, jac)
         cond = exact_condition(jac[0][:, free])
         label = what if target is not None else f"{what} (problem {number})"
         if cond > SINGULAR_CONDITION and norm < SINGULAR_RESIDUAL:
