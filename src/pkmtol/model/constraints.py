@@ -66,6 +66,8 @@ class ConstrainedModel:
         actuated: Indices into ``q`` (and ``v``) of the actuated joints, limb order.
         platform_frames: Per limb, the frame id in :attr:`model` of that limb's platform frame
             (limb 0's is the platform frame O').
+        frame_maps: Per limb, its frame ids → frame ids in :attr:`model` (the base's frames of a
+            limb after the first map to limb 1's).
     """
 
     model: pin.Model
@@ -74,6 +76,7 @@ class ConstrainedModel:
     q_slices: tuple[slice, ...]
     actuated: tuple[int, ...]
     platform_frames: tuple[int, ...]
+    frame_maps: tuple[dict[int, int], ...] = ()
 
     @property
     def platform_frame(self) -> int:
@@ -172,6 +175,8 @@ def constraint_models(
     m.name = mechanism.name
     used: set[str] = {f.name for f in m.frames}
     last_joint, platform_frames, q_slices, actuated = [], [], [], []
+    frame_maps: list[dict[int, int]] = []
+    base_frames: dict[str, int] = {}
     inner: list[Any] = []  # the limbs' internal loops, after the limbs' closures on the platform
     for i, (limb, lm) in enumerate(zip(limbs, lms, strict=True)):
         jmap = {0: 0}
@@ -199,7 +204,10 @@ def constraint_models(
             jmap[j] = jid
         fmap = {0: 0}
         for fid, f in enumerate(lm.frames):
-            if fid == 0 or (i > 0 and f.parentJoint == 0):
+            if fid and i > 0 and f.parentJoint == 0:
+                fmap[fid] = base_frames.get(f.name, 0)
+                continue
+            if fid == 0:
                 continue
             parent = fmap.get(f.parentFrame, 0)
             if f.type == pin.FrameType.JOINT:
@@ -212,6 +220,8 @@ def constraint_models(
                 pin.Frame(name, jmap[f.parentJoint], parent, f.placement, f.type, inertia), False
             )
             used.add(name)
+            if i == 0 and f.parentJoint == 0:
+                base_frames[f.name] = fmap[fid]
         last_joint.append(jmap[lm.frames[limb.platform_frame].parentJoint])
         platform_frames.append(fmap[limb.platform_frame])
         for lp in limb.loops:  # frame a is joint1's side, frame b joint2's: residual of a → b
@@ -222,6 +232,7 @@ def constraint_models(
             inner.append(c)
         q_slices.append(slice(start, m.nq))
         actuated += [start + a for a in limb.actuated]
+        frame_maps.append(fmap)
     constraints = []
     ref = lms[0].frames[limbs[0].platform_frame].placement
     for i in range(1, len(limbs)):
@@ -236,6 +247,7 @@ def constraint_models(
         q_slices=tuple(q_slices),
         actuated=tuple(actuated),
         platform_frames=tuple(platform_frames),
+        frame_maps=tuple(frame_maps),
     )
 
 
