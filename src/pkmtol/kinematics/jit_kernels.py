@@ -518,3 +518,7 @@ def frames(
                     for r in range(3):
                         jac[f, kk, r, col] = rf[0, r] * u0 + rf[1, r] * u1 + rf[2, r] * u2
                         jac[f, kk, 3 + r, col] = 0.0
+
+
+#: ``log6`` and ``Jlog6`` of one placement, for the tree kernels (:mod:`pkmtol.kinematics.tree_kernels`).
+log6_one = _log6

@@ -41,8 +41,18 @@ from pkmtol.kinematics.closed_chain import (
 )
 from pkmtol.kinematics.solutions import Solutions
 from pkmtol.kinematics.stacked_solve import condition_bound, exact_condition, newton_steps
-from pkmtol.kinematics.tree_frames import TreePoses, TreeTables, adjoint_inverse, forward, point_rows
-from pkmtol.model.loop_tree import LoopTree
+from pkmtol.kinematics.tree_frames import (
+    TreePoses,
+    TreeTables,
+    adjoint_inverse,
+    forward,
+    point_rows,
+    tree_kernel,
+)
+from pkmtol.model.loop_tree import LoopTree, PointTask
+
+#: No task rows (forward problems), for the compiled rows.
+_NO_TARGETS = np.zeros((0, 3))
 
 
 class TreeBatch:
@@ -70,6 +80,21 @@ class TreeBatch:
             start += lp.rows
         self.loop_slices = rows
         self.n_equations = start
+        frames = tree.model.frames
+        self._k_args = (
+            np.array([lp.kind == "6d" for lp in tree.loops], dtype=bool),
+            np.array([int(frames[lp.frame_a].parentJoint) - 1 for lp in tree.loops], dtype=np.int64),
+            np.array([frames[lp.frame_a].placement.homogeneous for lp in tree.loops]).reshape(-1, 4, 4),
+            np.array([int(frames[lp.frame_b].parentJoint) - 1 for lp in tree.loops], dtype=np.int64),
+            np.array([frames[lp.frame_b].placement.homogeneous for lp in tree.loops]).reshape(-1, 4, 4),
+            np.array([m[0] for m in self._masks], dtype=bool).reshape(-1, tree.nq),
+            np.array([m[1] for m in self._masks], dtype=bool).reshape(-1, tree.nq),
+            np.array([sl.start for sl in rows] + [start], dtype=np.int64),
+            int(frames[tree.task_frame].parentJoint) - 1,
+            frames[tree.task_frame].placement.homogeneous,
+            self._task_mask,
+            np.asarray(tree.task.point_m, dtype=float),
+        )
         self.chain = TreeChain(self)
 
     # --- public ---------------------------------------------------------------------------
@@ -82,7 +107,8 @@ class TreeBatch:
             guesses: Shape (B, n): initial guesses.
 
         Returns:
-            The solutions (``jacobians`` holds the task frame's LOCAL Jacobian); a problem's error
+            The solutions (``rotation``/``translation``: the platform frame's placement, ``p_m``
+            the task point, ``jacobians`` the task frame's LOCAL Jacobian); a problem's error
             is an :class:`UnreachableTargetError`, :class:`JointLimitError` or :class:`SingularPoseError`.
         """
         targets = np.asarray(targets_m, dtype=float).reshape(-1, 3)
@@ -102,7 +128,9 @@ class TreeBatch:
                 errors[k] = self.limit_violation(sols.q[k], targets[k])
         return replace(sols, errors=tuple(errors))
 
-    def forward(self, q_actuated: np.ndarray, guesses: np.ndarray, offsets: np.ndarray | None = None) -> Solutions:
+    def forward(
+        self, q_actuated: np.ndarray, guesses: np.ndarray, offsets: np.ndarray | None = None
+    ) -> Solutions:
         """Poses for given actuator readings (actual value = reading + offset; passive joints solved).
 
         Args:
@@ -113,7 +141,9 @@ class TreeBatch:
         q = np.array(guesses, dtype=float).reshape(-1, self.n_joints)
         q[:, self.actuated_idx] = np.asarray(q_actuated, dtype=float).reshape(len(q), -1)
         if offsets is not None:
-            q[:, self.actuated_idx] += np.asarray(offsets, dtype=float).reshape(len(q), -1)[:, self.actuated_idx]
+            q[:, self.actuated_idx] += np.asarray(offsets, dtype=float).reshape(len(q), -1)[
+                :, self.actuated_idx
+            ]
         free = np.ones(self.n_joints, dtype=bool)
         free[self.actuated_idx] = False
         return self._newton(q, free, None, "forward kinematics")
@@ -131,6 +161,25 @@ class TreeBatch:
         rows = self.n_equations + (self.tree.task.rows if targets is not None else 0)
         res = np.empty((b, rows))
         jac = np.zeros((b, rows, self.n_joints))
+        kernel = tree_kernel()
+        if kernel is not None and type(self.tree.task) is PointTask:
+            near = np.zeros(b, dtype=bool)
+            kernel.tree_system(
+                poses.joint,
+                poses.columns,
+                *self._k_args,
+                _NO_TARGETS if targets is None else targets,
+                res,
+                jac,
+                near,
+            )
+            for k in np.flatnonzero(near):  # a loop near a half turn: the numpy rows (Pinocchio's log6)
+                one = forward(self.tables, q[k][None])
+                for lp, sl, (ma, mb) in zip(self.tree.loops, self.loop_slices, self._masks, strict=True):
+                    ha, hb = one.frame(self.tree, lp.frame_a), one.frame(self.tree, lp.frame_b)
+                    r_k, j_k = loop_rows_world(lp.kind, ha, hb, one.columns, ma, mb)
+                    res[k, sl], jac[k, sl] = r_k[0], j_k[0]
+            return res, jac, poses
         for lp, sl, (ma, mb) in zip(self.tree.loops, self.loop_slices, self._masks, strict=True):
             ha, hb = poses.frame(self.tree, lp.frame_a), poses.frame(self.tree, lp.frame_b)
             res[:, sl], jac[:, sl] = loop_rows_world(lp.kind, ha, hb, poses.columns, ma, mb)
@@ -160,7 +209,12 @@ class TreeBatch:
             return None
         k = int(bad[0])
         return JointLimitError(
-            target, self.tree.name, self.tree.joint_names[k], float(q[k]), float(self.lower[k]), float(self.upper[k])
+            target,
+            self.tree.name,
+            self.tree.joint_names[k],
+            float(q[k]),
+            float(self.lower[k]),
+            float(self.upper[k]),
         )
 
     # --- internals ------------------------------------------------------------------------
@@ -173,7 +227,8 @@ class TreeBatch:
         n_free = int(free.sum())
         system = np.zeros((count, rows, n_free))
         residual = np.full(count, np.nan)
-        done_h = np.zeros((count, 4, 4))
+        done_h = np.zeros((count, 4, 4))  # the task frame's placement
+        done_p = np.zeros((count, 4, 4))  # the platform frame's
         errors: list[KinematicsError | None] = [None] * count
         prev = np.full(count, np.inf)
         active = np.arange(count)
@@ -187,6 +242,7 @@ class TreeBatch:
             if conv.any():
                 idx = active[conv]
                 done_h[idx] = poses.frame(self.tree, self.tree.task_frame)[conv]
+                done_p[idx] = poses.frame(self.tree, self.tree.platform_frame)[conv]
                 system[idx] = a[conv]
                 residual[idx] = np.linalg.norm(res[conv], axis=1)
                 solved.append(idx)
@@ -223,8 +279,10 @@ class TreeBatch:
                     if rows < n_free or exact > SINGULAR_CONDITION:
                         errors[int(k)] = SingularPoseError(f"the {what} Jacobian", exact)
         for k in np.flatnonzero(np.isnan(residual)):
-            done_h[k] = self._task_h(q[k])
-        r, t = done_h[:, :3, :3], done_h[:, :3, 3]
+            last = forward(self.tables, q[k][None])
+            done_h[k] = last.frame(self.tree, self.tree.task_frame)[0]
+            done_p[k] = last.frame(self.tree, self.tree.platform_frame)[0]
+        r, t = done_p[:, :3, :3], done_p[:, :3, 3]
         local = self._task_local(q)
         return Solutions(
             q=q,
@@ -240,9 +298,6 @@ class TreeBatch:
             limb_offsets=(0, self.n_joints),
             task=targets is not None,
         )
-
-    def _task_h(self, q: np.ndarray) -> np.ndarray:
-        return forward(self.tables, q[None]).frame(self.tree, self.tree.task_frame)[0]
 
     def _task_local(self, q: np.ndarray) -> np.ndarray:
         """LOCAL Jacobians (b, 6, n) of the task frame."""
@@ -283,7 +338,9 @@ class TreeChain:
     def forward(self, q_actuated: np.ndarray, q0: np.ndarray, offsets: np.ndarray | None = None) -> Pose:
         """The pose for actuator readings ``q_actuated`` (f,) from the guess ``q0`` (n,)."""
         off = None if offsets is None else np.asarray(offsets, dtype=float)[None]
-        return self.batch.forward(np.asarray(q_actuated, dtype=float)[None], np.asarray(q0)[None], off).pose(0)
+        return self.batch.forward(np.asarray(q_actuated, dtype=float)[None], np.asarray(q0)[None], off).pose(
+            0
+        )
 
 
 def loop_rows_world(
@@ -313,3 +370,31 @@ def loop_rows_world(
         nu[k], jl[k] = pin.log6(e).vector, pin.Jlog6(e)
     diff = columns * (mb.astype(float) - ma.astype(float))
     return nu, (jl @ adjoint_inverse(hb)) @ diff
+
+
+def perturbed_tree(tree: LoopTree, raw: np.ndarray) -> tuple[LoopTree, np.ndarray]:
+    """The tree of a machine with raw errors ``raw`` (n_raw,), and its joint offsets (n,).
+
+    Joint placements become ``jointPlacements[j] · exp6(ε_j)``; an error frame's or a loop's error
+    ``ε`` moves each frame g it moves (on the same body as its frame F) to ``F · exp6(ε) · F⁻¹ · g``.
+    """
+    raw = np.asarray(raw, dtype=float).reshape(tree.n_raw)
+    model = pin.Model(tree.model)
+    for j in range(tree.nq):
+        blk = raw[tree.raw_block("joint", j)]
+        model.jointPlacements[j + 1] = model.jointPlacements[j + 1] * pin.exp6(blk)
+    moves = [(ef.frame, ef.moves, raw[tree.raw_block("frame", k)]) for k, ef in enumerate(tree.error_frames)]
+    moves += [
+        (lp.frame_b, mv, raw[tree.raw_block("loop", k)])
+        for k, (lp, mv) in enumerate(zip(tree.loops, tree.loop_moves, strict=True))
+    ]
+    for fid, frames, eps in moves:
+        if not np.any(eps):
+            continue
+        pf = tree.model.frames[fid].placement
+        change = pf * pin.exp6(eps) * pf.inverse()
+        for g in frames:
+            f = model.frames[g]
+            f.placement = change * tree.model.frames[g].placement
+            model.frames[g] = f
+    return replace(tree, model=model), raw[tree.offset_start :].copy()

@@ -18,11 +18,23 @@ axes of K) is ``[I −[p×]; 0 I]`` of it. The numbers agree with Pinocchio's ``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import importlib
+from dataclasses import dataclass, field
+from functools import cache
+from types import ModuleType
 
 import numpy as np
 
+from pkmtol.kinematics import acceleration, se3_batch
 from pkmtol.model.loop_tree import LoopTree
+
+
+@cache
+def tree_kernel() -> ModuleType | None:
+    """:mod:`pkmtol.kinematics.tree_kernels` when the compiled kernels run, else None."""
+    if acceleration.kernels() is None:
+        return None
+    return importlib.import_module("pkmtol.kinematics.tree_kernels")
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,9 +85,17 @@ class TreePoses:
     joint: np.ndarray
     pre: np.ndarray
     columns: np.ndarray
+    _frames: dict = field(default_factory=dict, repr=False)
 
     def frame(self, tree: LoopTree, fid: int) -> np.ndarray:
         """Placements (b, 4, 4) of frame ``fid``."""
+        key = (id(tree), fid)
+        if key in self._frames:
+            return self._frames[key]
+        self._frames[key] = out = self._frame(tree, fid)
+        return out
+
+    def _frame(self, tree: LoopTree, fid: int) -> np.ndarray:
         f = tree.model.frames[fid]
         j = int(f.parentJoint)
         place = f.placement.homogeneous
@@ -86,11 +106,17 @@ class TreePoses:
 
 def forward(tables: TreeTables, q: np.ndarray) -> TreePoses:
     """Joint placements and spatial columns at configurations ``q`` (b, n) [rad or m]."""
-    q = np.asarray(q, dtype=float).reshape(-1, len(tables.parent))
+    q = np.ascontiguousarray(q, dtype=float).reshape(-1, len(tables.parent))
     b, n = q.shape
     joint = np.empty((b, n, 4, 4))
     pre = np.empty((b, n, 4, 4))
     cols = np.empty((b, 6, n))
+    kernel = tree_kernel()
+    if kernel is not None:
+        kernel.tree_forward(
+            q, tables.parent, tables.revolute, tables.axis, tables.placement, joint, pre, cols
+        )
+        return TreePoses(joint, pre, cols)
     eye = np.eye(4)
     for j in range(n):
         p = tables.parent[j]
@@ -163,3 +189,39 @@ def _skew(v: np.ndarray) -> np.ndarray:
     z = np.zeros(len(v))
     x, y, w = v[:, 0], v[:, 1], v[:, 2]
     return np.stack([z, -w, y, w, z, -x, -y, x, z], axis=1).reshape(-1, 3, 3)
+
+
+def raw_world(tree: LoopTree, poses: TreePoses) -> np.ndarray:
+    """Spatial twist (b, 6, n_raw) of every raw error (module docstring of tree_frames)."""
+    b = len(poses.joint)
+    out = np.zeros((b, 6, tree.n_raw))
+    g = adjoint(poses.pre.reshape(-1, 4, 4)).reshape(b, tree.nq, 6, 6)
+    out[:, :, : 6 * tree.nq] = np.swapaxes(g, 1, 2).reshape(b, 6, 6 * tree.nq)
+    for k, ef in enumerate(tree.error_frames):
+        out[:, :, tree.raw_block("frame", k)] = adjoint(poses.frame(tree, ef.frame))
+    for k, lp in enumerate(tree.loops):
+        out[:, :, tree.raw_block("loop", k)] = adjoint(poses.frame(tree, lp.frame_b))
+    out[:, :, tree.offset_start :] = poses.columns
+    return out
+
+
+def loop_rows(kind: str, ha: np.ndarray, hb: np.ndarray, va: np.ndarray, vb: np.ndarray) -> np.ndarray:
+    """A loop's rows (b, rows, k) for spatial motions ``va``/``vb`` (b, 6, k) of its frames a and b."""
+    if kind == "3d":
+        return point_rows(hb[:, :3, 3], vb) - point_rows(ha[:, :3, 3], va)
+    rat = np.swapaxes(ha[:, :3, :3], 1, 2)
+    re = rat @ hb[:, :3, :3]
+    pe = (rat @ (hb[:, :3, 3] - ha[:, :3, 3])[:, :, None])[:, :, 0]
+    _, jl, _ = se3_batch.log6_and_jacobian(re, pe)
+    return (jl @ adjoint_inverse(hb)) @ (vb - va)
+
+
+def loop_jacobians(tree: LoopTree, poses: TreePoses, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The constraint Jacobian ``C`` (b, rows, n) and its error columns ``D`` (b, rows, n_raw)."""
+    c, d = [np.zeros((len(raw), 0, tree.nq))], [np.zeros((len(raw), 0, tree.n_raw))]
+    for lp in tree.loops:
+        ha, hb = poses.frame(tree, lp.frame_a), poses.frame(tree, lp.frame_b)
+        sa, sb = tree.support(lp.frame_a), tree.support(lp.frame_b)
+        c.append(loop_rows(lp.kind, ha, hb, poses.columns * sa, poses.columns * sb))
+        d.append(loop_rows(lp.kind, ha, hb, raw * tree.moved_by(lp.frame_a), raw * tree.moved_by(lp.frame_b)))
+    return np.concatenate(c, axis=1), np.concatenate(d, axis=1)

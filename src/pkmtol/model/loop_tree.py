@@ -162,10 +162,14 @@ class LoopTree:
             object.__setattr__(self, "platform_frame", int(self.task_frame))
         for lp in self.loops:
             if lp.kind not in LOOP_KINDS:
-                raise ClosedLoopError(self.name, lp.name, f"loop '{lp.name}': unknown type {lp.kind!r}; use '6d' or '3d'")
+                raise ClosedLoopError(
+                    self.name, lp.name, f"loop '{lp.name}': unknown type {lp.kind!r}; use '6d' or '3d'"
+                )
             for f in (lp.frame_a, lp.frame_b):
                 if not 0 <= f < nf:
-                    raise ClosedLoopError(self.name, lp.name, f"loop '{lp.name}': frame id {f} is not in the model")
+                    raise ClosedLoopError(
+                        self.name, lp.name, f"loop '{lp.name}': frame id {f} is not in the model"
+                    )
             if m.frames[lp.frame_a].parentJoint == m.frames[lp.frame_b].parentJoint:
                 raise ClosedLoopError(
                     self.name,
@@ -299,9 +303,7 @@ def _limbs(tree: LoopTree) -> tuple[Limbs, ...]:
         for g in tree.groups:
             bodies = {j + 1 for j in g} - {pbody}
             lps = tuple(k for k, (a, b) in enumerate(loop_edges) if a in bodies or b in bodies)
-            reaches = any(int(m.parents[j + 1]) == 0 for j in g) or any(
-                0 in loop_edges[k] for k in lps
-            )
+            reaches = any(int(m.parents[j + 1]) == 0 for j in g) or any(0 in loop_edges[k] for k in lps)
             out.append(Limbs(tuple(sorted(g)), lps, bool(path & set(g)), reaches))
         return tuple(out)
     parent = list(range(m.njoints))
@@ -342,7 +344,9 @@ def frame_named(model: pin.Model, name: str, what: str, source: str = "") -> int
     ids = [k for k, f in enumerate(model.frames) if f.name == name]
     if not ids:
         frames = ", ".join(f.name for f in model.frames[1:])
-        raise ClosedLoopError(source or model.name, name, f"{what}: no frame '{name}' in the tree (frames: {frames})")
+        raise ClosedLoopError(
+            source or model.name, name, f"{what}: no frame '{name}' in the tree (frames: {frames})"
+        )
     body = [k for k in ids if model.frames[k].type == pin.FrameType.BODY]
     return (body or ids)[0]
 
@@ -355,10 +359,16 @@ def make_loops(
     seen: set[str] = set()
     for name, fa, fb, kind in loops:
         if not name or name in seen:
-            raise ClosedLoopError(source or model.name, name, f"loop '{name}': the name is empty or used twice; name each loop once")
+            raise ClosedLoopError(
+                source or model.name,
+                name,
+                f"loop '{name}': the name is empty or used twice; name each loop once",
+            )
         seen.add(name)
         if kind not in LOOP_KINDS:
-            raise ClosedLoopError(source or model.name, name, f"loop '{name}': unknown type {kind!r}; use '6d' or '3d'")
+            raise ClosedLoopError(
+                source or model.name, name, f"loop '{name}': unknown type {kind!r}; use '6d' or '3d'"
+            )
         a = frame_named(model, fa, f"loop '{name}'", source)
         b = frame_named(model, fb, f"loop '{name}'", source)
         out.append(LimbLoop(name, a, b, kind, (fa, fb)))

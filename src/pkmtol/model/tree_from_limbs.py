@@ -75,13 +75,19 @@ def tree_from_mechanism(
     moves: list[tuple[int, ...]] = []
     labels: list[str] = []
     for i in range(1, len(limbs)):
-        loops.append(LimbLoop(f"{limbs[i].name}.attach", pf[0], pf[i], "6d", ("platform", limbs[i].attach_name)))
-        moves.append((pf[i],) + tuple(sorted(fm[i][f] for f in limbs[i].attach_frames if f != limbs[i].platform_frame)))
+        loops.append(
+            LimbLoop(f"{limbs[i].name}.attach", pf[0], pf[i], "6d", ("platform", limbs[i].attach_name))
+        )
+        moves.append(
+            (pf[i],) + tuple(sorted(fm[i][f] for f in limbs[i].attach_frames if f != limbs[i].platform_frame))
+        )
         labels.append(f"{limbs[i].name}.{limbs[i].attach_name}")
     for i, limb in enumerate(limbs):
         for lp in limb.loops:
             loops.append(
-                LimbLoop(f"{limb.name}.{lp.name}", fm[i][lp.frame_a], fm[i][lp.frame_b], lp.kind, lp.frame_names)
+                LimbLoop(
+                    f"{limb.name}.{lp.name}", fm[i][lp.frame_a], fm[i][lp.frame_b], lp.kind, lp.frame_names
+                )
             )
             moves.append((fm[i][lp.frame_b],))
             labels.append(f"{limb.name}.{lp.name}")

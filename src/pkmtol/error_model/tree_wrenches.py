@@ -1,0 +1,352 @@
+"""The limbs of a :class:`~pkmtol.model.loop_tree.LoopTree` at solved poses: motion spaces, wrenches, error columns.
+
+For limb L (:attr:`LoopTree.limbs`) the unknowns are its joints' motions ``dq_L`` and the
+platform frame's spatial twist τ. Its loops give rows; a loop frame on the platform body, or hanging
+below it, moves by τ plus the joints and errors between it and the platform frame; the limb that
+carries the platform in the tree adds ``τ = T_P dq + E_P δ``. So ``R_L [dq_L; τ] + D_L δ = 0``.
+From one SVD of ``R_L`` (per pose, stacked):
+
+* ``null(R_L)``: the limb's motions; their τ part in K' spans its motion space ``S_L``;
+* ``W_c,L = null(S_Lᵀ)``; for an actuator a of L, ``w_a`` = the minimum-norm solution of
+  ``S_Lᵀ w = Q_aᵀ`` (``Q_a`` its motion in each null vector), i.e. reciprocal to every motion of L
+  that keeps ``dq_a = 0`` and orthogonal to ``W_c,L``; then a unit screw, ``Λ_a = 1 / scale``;
+* ``E'_L``: ``x = −R_L⁺ D_L`` corrected along ``null(R_L)`` so that every actuator of L is held,
+  its τ part in K'; the rows of ``D_L`` outside ``range(R_L)`` are the limb's assembly errors.
+
+Then :func:`limb_fields` assembles Eqs. 5–8 and 25 as :mod:`pkmtol.error_model.separation` does.
+Poses where a rank differs from the others' are assembled in their own group, with their own ranks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pkmtol.error_model.separation import RANK_TOLERANCE, W_SINGULAR_CONDITION
+from pkmtol.error_model.tree_parameters import TreeParameters
+from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError, SingularPoseError
+from pkmtol.kinematics.tree_frames import TreePoses, loop_rows, raw_world, to_k_prime
+from pkmtol.model.loop_tree import Limbs, LoopTree
+
+#: Relative singular-value threshold of the limbs' loop systems.
+LOOP_RANK_TOLERANCE = 1e-9
+
+
+def _limb_system(
+    tree: LoopTree, limb: Limbs, poses: TreePoses, raw: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``R_L`` (b, rows, nJ + 6), ``D_L`` (b, rows, k) and the k raw columns it has."""
+    pf = tree.platform_frame
+    sup_p, mov_p = tree.support(pf), tree.moved_by(pf)
+    pjoint = int(tree.model.frames[pf].parentJoint) - 1
+    cols = list(limb.joints)
+    frames = [f for k in limb.loops for f in (tree.loops[k].frame_a, tree.loops[k].frame_b)]
+    used = np.zeros(tree.n_raw, dtype=bool)
+    for f in frames:
+        used |= tree.moved_by(f)
+    if limb.holds_platform or any(pjoint >= 0 and tree.support(f)[pjoint] for f in frames):
+        used |= mov_p
+    rc = np.flatnonzero(used)
+    sub = raw[:, :, rc]
+    b = len(raw)
+    r_rows, d_rows = [], []
+
+    def motion(x: int) -> tuple[np.ndarray, np.ndarray]:
+        sup, mov = tree.support(x), tree.moved_by(x)[rc].astype(float)
+        v = np.zeros((b, 6, len(cols) + 6))
+        if pjoint >= 0 and sup[pjoint]:  # on the platform body or below it: through τ
+            sup, mov = sup & ~sup_p, mov - mov_p[rc]
+            v[:, :, len(cols) :] = np.eye(6)
+        stray = set(np.flatnonzero(sup).tolist()) - set(cols)
+        if stray:
+            name = tree.model.frames[x].name
+            raise ClosedLoopError(
+                tree.name,
+                name,
+                f"frame '{name}' is moved by joint '{tree.joint_names[min(stray)]}' of another limb; "
+                "a loop frame must hang on its own limb or on the platform",
+            )
+        v[:, :, : len(cols)] = poses.columns[:, :, cols] * sup[cols]
+        return v, sub * mov
+
+    for k in limb.loops:
+        lp = tree.loops[k]
+        ha, hb = poses.frame(tree, lp.frame_a), poses.frame(tree, lp.frame_b)
+        (va, ea), (vb, eb) = motion(lp.frame_a), motion(lp.frame_b)
+        r_rows.append(loop_rows(lp.kind, ha, hb, va, vb))
+        d_rows.append(loop_rows(lp.kind, ha, hb, ea, eb))
+    if limb.holds_platform:
+        v = np.zeros((b, 6, len(cols) + 6))
+        v[:, :, : len(cols)] = -poses.columns[:, :, cols] * sup_p[cols]
+        v[:, :, len(cols) :] = np.eye(6)
+        r_rows.append(v)
+        d_rows.append(-(sub * mov_p[rc]))
+    if not r_rows:
+        return np.zeros((b, 0, len(cols) + 6)), np.zeros((b, 0, len(rc))), rc
+    return np.concatenate(r_rows, axis=1), np.concatenate(d_rows, axis=1), rc
+
+
+def _ranks(sv: np.ndarray, tol: float) -> np.ndarray:
+    if not sv.shape[1]:
+        return np.zeros(len(sv), dtype=int)
+    return np.sum(sv > tol * np.maximum(sv[:, :1], 1.0), axis=1)
+
+
+class _Split:
+    """Rank, null basis, pseudo-inverse and left null basis of stacked matrices ``a`` (b, r, c).
+
+    Where ``r ≤ c`` and a QR factorisation ``aᵀ = Q [T; 0]`` certifies rank ``r`` (the bound
+    ``‖T‖_F ‖T⁻¹‖_F`` keeps the smallest singular value above ``tol`` times the largest, the rule of
+    the SVD path), ``null = Q[:, r:]`` and ``a⁺ = Q[:, :r] T⁻ᵀ``; elsewhere an SVD decides, with the
+    same relative tolerance. Results of one rank are stored together (:meth:`at`).
+    """
+
+    def __init__(self, a: np.ndarray, tol: float) -> None:
+        b, r, c = a.shape
+        self.ranks = np.full(b, -1, dtype=int)
+        self.groups: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.where = np.zeros(b, dtype=int)
+        rest = np.arange(b)
+        if 0 < r <= c:
+            q, t = np.linalg.qr(np.swapaxes(a, 1, 2), mode="complete")
+            t = t[:, :r]
+            try:
+                inv = np.linalg.inv(t)
+            except np.linalg.LinAlgError:
+                inv = np.full_like(t, np.nan)
+            fro = np.sqrt(np.einsum("bij,bij->b", t, t))
+            bound = fro * np.sqrt(np.einsum("bij,bij->b", inv, inv))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sure = np.isfinite(bound) & (fro / (np.sqrt(r) * bound) > tol * np.maximum(fro, 1.0))
+            idx = np.flatnonzero(sure)
+            if idx.size:
+                pinv = q[idx][:, :, :r] @ np.swapaxes(inv[idx], 1, 2)
+                self._store(r, idx, q[idx][:, :, r:], pinv, np.zeros((idx.size, r, 0)))
+            rest = np.flatnonzero(~sure)
+        if rest.size:
+            u, sv, vt = np.linalg.svd(a[rest])
+            ranks = _ranks(sv, tol)
+            for k in np.unique(ranks):
+                sub = np.flatnonzero(ranks == k)
+                kk = int(k)
+                uu, ss, vv = u[sub], sv[sub], vt[sub]
+                pinv = np.swapaxes(vv[:, :kk], 1, 2) @ (np.swapaxes(uu[:, :, :kk], 1, 2) / ss[:, :kk, None])
+                self._store(kk, rest[sub], np.swapaxes(vv[:, kk:], 1, 2), pinv, uu[:, :, kk:])
+
+    def _store(
+        self, rank: int, idx: np.ndarray, null: np.ndarray, pinv: np.ndarray, left: np.ndarray
+    ) -> None:
+        self.ranks[idx] = rank
+        if rank in self.groups:
+            old = self.groups[rank]
+            idx = np.concatenate([old[0], idx])
+            null, pinv, left = (
+                np.concatenate([o, x]) for o, x in zip(old[1:], (null, pinv, left), strict=True)
+            )
+        self.groups[rank] = (idx, null, pinv, left)
+        self.where[idx] = np.arange(len(idx))
+
+    def at(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(null, pinv, left)`` at ``poses`` (all of one rank)."""
+        _, null, pinv, left = self.groups[int(self.ranks[poses[0]])]
+        pos = self.where[poses]
+        return null[pos], pinv[pos], left[pos]
+
+
+def limb_fields(tree: LoopTree, params: TreeParameters, poses: TreePoses) -> list[dict | KinematicsError]:
+    """The :class:`~pkmtol.error_model.separation.Separation` fields (a dict) or the error of each pose."""
+    raw = raw_world(tree, poses)
+    limbs = [lb for lb in tree.limbs if lb.reaches_base]
+    systems = [_limb_system(tree, lb, poses, raw) for lb in limbs]
+    splits = [_Split(r, LOOP_RANK_TOLERANCE) for r, _, _ in systems]
+    key = np.stack([sp.ranks for sp in splits], axis=1)
+    out: list[dict | KinematicsError | None] = [None] * len(raw)
+    for k_r in np.unique(key, axis=0):
+        at = np.flatnonzero((key == k_r).all(axis=1))
+        parts = [
+            _limb_part(tree, li, lb, d[at], rc, sp.at(at), poses, at)
+            for li, (lb, (_, d, rc), sp) in enumerate(zip(limbs, systems, splits, strict=True))
+        ]
+        key_s = np.stack([p["split_s"].ranks for p in parts], axis=1)
+        for k_s in np.unique(key_s, axis=0):
+            sub = np.flatnonzero((key_s == k_s).all(axis=1))
+            fields = _assemble(tree, params, [_take(p, sub) for p in parts], poses, at[sub])
+            for pos, f in zip(at[sub], fields, strict=True):
+                out[int(pos)] = f
+    return [f for f in out if f is not None]
+
+
+def _limb_part(
+    tree: LoopTree,
+    li: int,
+    limb: Limbs,
+    d: np.ndarray,
+    rc: np.ndarray,
+    split: tuple[np.ndarray, np.ndarray, np.ndarray],
+    poses: TreePoses,
+    at: np.ndarray,
+) -> dict:
+    """One limb at poses ``at`` (its loop system of one rank): its motion space and columns."""
+    nj = len(limb.joints)
+    act = [limb.joints.index(a) for a in tree.actuated if a in limb.joints]
+    null, pinv, left = split
+    x = -(pinv @ d)  # a solution of R x = −D (b, nJ + 6, k)
+    o_p = poses.frame(tree, tree.platform_frame)[at, :3, 3]
+    s = to_k_prime(o_p, null[:, nj:])
+    if act:  # hold the limb's actuators: move x along null(R) so that its dq_a vanish
+        q_a = null[:, act]  # (b, f_L, d)
+        if len(act) == 1:
+            qq = np.einsum("bij,bij->b", q_a, q_a)
+            c = np.swapaxes(q_a, 1, 2) * (x[:, act] / np.where(qq > 0, qq, 1.0)[:, None, None])
+        else:
+            c = np.linalg.pinv(q_a) @ x[:, act]
+        tau = x[:, nj:] - null[:, nj:] @ c
+    else:
+        tau = x[:, nj:]
+    return {
+        "limb": li,
+        "limb_obj": limb,
+        "act": act,
+        "null": null,
+        "s": s,
+        "e": to_k_prime(o_p, tau),
+        "rc": rc,
+        "inner": np.swapaxes(left, 1, 2) @ d,
+        "split_s": _Split(np.swapaxes(s, 1, 2), RANK_TOLERANCE),
+    }
+
+
+def _take(part: dict, sub: np.ndarray) -> dict:
+    """The part at poses ``sub`` (one motion-space rank): its constraint wrenches and ``(Sᵀ)⁺``."""
+    p = {k: (v[sub] if isinstance(v, np.ndarray) and v.ndim >= 2 else v) for k, v in part.items()}
+    p["wc"], p["s_pinv"], _ = part["split_s"].at(sub)
+    return p
+
+
+def _assemble(
+    tree: LoopTree, params: TreeParameters, parts: list[dict], poses: TreePoses, at: np.ndarray
+) -> list[dict | KinematicsError]:
+    """Eqs. 5–8, 25 at poses ``at`` (every rank the same): the formulas of ``separation._stacked``."""
+    b, n = len(at), len(params)
+    sel = params.selection
+    hp = poses.frame(tree, tree.platform_frame)[at]
+    where = tree.task.position(poses.frame(tree, tree.task_frame)[at])
+    errors: list[KinematicsError | None] = [None] * b
+    wa, wc, ya, yc, lam, act_limb, con_limb, inner = [], [], [], [], [], [], [], []
+    cols = np.zeros((b, 6, n))
+    best = np.zeros((b, n))
+    for p in parts:
+        sl = sel[p["rc"]]
+        pc = np.flatnonzero(np.any(sl != 0.0, axis=0))  # the parameters this limb sees
+        e_pc = (p["e"].reshape(-1, len(p["rc"])) @ sl[:, pc]).reshape(b, 6, len(pc))
+        norms = np.sqrt(np.einsum("bjm,bjm->bm", e_pc, e_pc))
+        take = norms > best[:, pc]
+        cols[:, :, pc] = np.where(take[:, None, :], e_pc, cols[:, :, pc])
+        best[:, pc] = np.maximum(best[:, pc], norms)
+
+        def rows_of(w: np.ndarray) -> np.ndarray:
+            row = np.zeros((b, n))
+            row[:, pc] = np.einsum("bj,bjm->bm", w, e_pc)
+            return row
+
+        for k in range(p["wc"].shape[2]):
+            w = np.ascontiguousarray(p["wc"][:, :, k])
+            wc.append(w)
+            con_limb.append(p["limb"])
+            yc.append(rows_of(w))
+        for a in p["act"]:
+            rhs = p["null"][:, a, :]  # dq_a of each null motion (b, d)
+            w = (p["s_pinv"] @ rhs[:, :, None])[:, :, 0]  # the minimum-norm w with Sᵀ w = rhs
+            miss = np.abs(np.einsum("bjd,bj->bd", p["s"], w) - rhs).max(axis=1, initial=0.0)
+            for k in np.flatnonzero(~(miss < 1e-6)):
+                joint = tree.joint_names[p["limb_obj"].joints[a]]
+                errors[int(k)] = errors[int(k)] or MobilityError(
+                    f"limb {p['limb'] + 1} of '{tree.name}': actuated joint '{joint}' moves the platform only "
+                    f"within the passive motions at P = {where[k]} m (actuation singularity)"
+                )
+            f_norm = np.linalg.norm(w[:, :3], axis=1)
+            scale = np.where(
+                f_norm > 1e-9 * np.linalg.norm(w, axis=1), f_norm, np.linalg.norm(w[:, 3:], axis=1)
+            )
+            for k in np.flatnonzero(~(scale > 0)):
+                errors[int(k)] = errors[int(k)] or MobilityError(
+                    f"limb {p['limb'] + 1} of '{tree.name}': an actuated joint cannot move with the loops closed "
+                    f"at P = {where[k]} m (its loops lock it)"
+                )
+            w = w / np.where(scale > 0, scale, 1.0)[:, None]
+            scale = np.where(scale > 0, scale, 1.0)
+            wa.append(w)
+            lam.append(1.0 / scale)
+            act_limb.append(p["limb"])
+            ya.append(rows_of(w))
+        if p["inner"].shape[1]:
+            inner.append(p["inner"] @ sl)
+    f, c = len(wa), len(wc)
+    if f + c < 6:
+        err = MobilityError(
+            f"only {f} actuation + {c} constraint wrenches at P = {where[0]} m; the platform keeps "
+            f"{6 - f - c} uncontrolled freedom(s). Check the actuated joints"
+        )
+        return [err] * b
+    w_all = np.concatenate(
+        [
+            np.stack(wa, axis=2) if f else np.zeros((b, 6, 0)),
+            np.stack(wc, axis=2) if c else np.zeros((b, 6, 0)),
+        ],
+        axis=2,
+    )
+    sv = np.linalg.svd(w_all, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        cond = np.where(sv[:, 5] > 0, sv[:, 0] / sv[:, 5], np.inf)
+    y_a = np.stack(ya, axis=1) if f else np.zeros((b, 0, n))
+    y_c = np.stack(yc, axis=1) if c else np.zeros((b, 0, n))
+    usable = cond <= W_SINGULAR_CONDITION
+    w_inv_t = np.full((b, 6, f + c), np.nan)
+    if usable.any():
+        wu = w_all[usable]
+        w_inv_t[usable] = (
+            np.swapaxes(np.linalg.inv(wu), 1, 2) if f + c == 6 else np.linalg.pinv(np.swapaxes(wu, 1, 2))
+        )
+    y = np.concatenate([y_a, y_c], axis=1)
+    twist_map = w_inv_t @ y
+    unc = w_inv_t[:, :, f:] @ y_c
+    incompatible = y - np.swapaxes(w_all, 1, 2) @ twist_map
+    n_inner = sum(x.shape[1] for x in inner)
+    if inner:
+        incompatible = np.concatenate([incompatible] + inner, axis=1)
+    lever = where - hp[:, :3, 3]
+    to_p = tree.task.of_twist(lever)
+    lam_arr = np.stack(lam, axis=1) if f else np.zeros((b, 0))
+    correction = -(y_a / lam_arr[:, :, None]) if f else np.zeros((b, 0, n))
+    j_c, j_t = to_p @ unc, to_p @ twist_map
+    actuation = w_inv_t[:, :, :f] * lam_arr[:, None, :]
+    out: list[dict | KinematicsError] = []
+    for k in range(b):
+        if errors[k] is not None:
+            out.append(errors[k])  # type: ignore[arg-type]
+        elif not usable[k]:
+            out.append(SingularPoseError("the wrench matrix W", float(cond[k]), where[k]))
+        else:
+            out.append(
+                {
+                    "joint_twists": tuple(p["s"][k] for p in parts),
+                    "error_columns": cols[k],
+                    "W_a": w_all[k, :, :f],
+                    "W_c": w_all[k, :, f:],
+                    "constraint_limb": np.array(con_limb, dtype=int),
+                    "actuated_limb": np.array(act_limb, dtype=int),
+                    "Lambda_a": lam_arr[k],
+                    "Y_a": y_a[k],
+                    "Y_c": y_c[k],
+                    "W_condition": float(cond[k]),
+                    "twist_map": twist_map[k],
+                    "correction": correction[k],
+                    "uncompensated_map": unc[k],
+                    "lever_m": lever[k],
+                    "J": j_c[k],
+                    "J_total": j_t[k],
+                    "redundancy": f + c - 6 + n_inner,
+                    "incompatible_map": incompatible[k],
+                    "actuation_map": actuation[k],
+                }
+            )
+    return out
