@@ -72,8 +72,9 @@ def _limb_system(
         lp = tree.loops[k]
         ha, hb = poses.frame(tree, lp.frame_a), poses.frame(tree, lp.frame_b)
         (va, ea), (vb, eb) = motion(lp.frame_a), motion(lp.frame_b)
-        r_rows.append(loop_rows(lp.kind, ha, hb, va, vb))
-        d_rows.append(loop_rows(lp.kind, ha, hb, ea, eb))
+        both = loop_rows(lp.kind, ha, hb, np.concatenate([va, ea], axis=2), np.concatenate([vb, eb], axis=2))
+        r_rows.append(both[:, :, : va.shape[2]])
+        d_rows.append(both[:, :, va.shape[2] :])
     if limb.holds_platform:
         v = np.zeros((b, 6, len(cols) + 6))
         v[:, :, : len(cols)] = -poses.columns[:, :, cols] * sup_p[cols]

@@ -241,27 +241,33 @@ class LoopTree:
 
     def support(self, frame: int) -> np.ndarray:
         """Shape (nq,): True for each joint that moves ``frame`` (its path from the root)."""
-        out = np.zeros(self.nq, dtype=bool)
-        j = int(self.model.frames[frame].parentJoint)
-        while j > 0:
-            out[j - 1] = True
-            j = int(self.model.parents[j])
-        return out
+        return self._tables[0][frame]
 
     def moved_by(self, frame: int) -> np.ndarray:
         """Shape (n_raw,): True for each raw error that moves ``frame``."""
-        out = np.zeros(self.n_raw, dtype=bool)
-        sup = self.support(frame)
-        for j in np.flatnonzero(sup):
-            out[self.raw_block("joint", int(j))] = True
-            out[self.offset_start + int(j)] = True
+        return self._tables[1][frame]
+
+    @cached_property
+    def _tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per frame: its supporting joints (F, nq) and the raw errors that move it (F, n_raw)."""
+        m = self.model
+        nf = len(m.frames)
+        sup = np.zeros((nf, self.nq), dtype=bool)
+        for f in range(nf):
+            j = int(m.frames[f].parentJoint)
+            while j > 0:
+                sup[f, j - 1] = True
+                j = int(m.parents[j])
+        mov = np.zeros((nf, self.n_raw), dtype=bool)
+        mov[:, : 6 * self.nq] = np.repeat(sup, 6, axis=1)
+        mov[:, self.offset_start :] = sup
         for k, ef in enumerate(self.error_frames):
-            if frame in ef.moves:
-                out[self.raw_block("frame", k)] = True
+            mov[list(ef.moves), self.raw_block("frame", k)] = True
         for k, moves in enumerate(self.loop_moves):
-            if frame in moves:
-                out[self.raw_block("loop", k)] = True
-        return out
+            mov[list(moves), self.raw_block("loop", k)] = True
+        sup.setflags(write=False)
+        mov.setflags(write=False)
+        return sup, mov
 
     @cached_property
     def limbs(self) -> tuple[Limbs, ...]:
