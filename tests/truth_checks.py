@@ -50,3 +50,29 @@ def linear_mismatches(mech, ps, chain, pose, sep, eta, q_start=None) -> tuple[fl
     t1 = pose_error_twist(pose.oMp, pert.forward(u, q0, offsets).oMp)
     t2 = pose_error_twist(pose.oMp, pert.forward(u + sep.correction @ eta, q0, offsets).oMp)
     return relative(t1, sep.twist_map @ eta), relative(t2, sep.uncompensated_map @ eta)
+
+
+def tree_mismatches(tree, params, sep, eta) -> tuple[float, float]:
+    """Truth test steps 1 and 2 on the general formulation (a LoopTree) at one separated pose.
+
+    The tree perturbed by ``eta`` (:func:`pkmtol.kinematics.tree_chain.perturbed_tree`) is solved
+    exactly with the actuators at nominal, then at nominal + Eq. 25; the platform frame's pose
+    errors against ``twist_map η`` and ``uncompensated_map η``.
+    """
+    t1, t2 = tree_pose_errors(tree, params, sep, eta)
+    return relative(t1, sep.twist_map @ eta), relative(t2, sep.uncompensated_map @ eta)
+
+
+def tree_pose_errors(tree, params, sep, eta) -> tuple[np.ndarray, np.ndarray]:
+    """The exact platform pose errors (K') of the tree perturbed by ``eta``: actuators nominal, then corrected."""
+    from pkmtol.kinematics.tree_chain import TreeBatch, perturbed_tree
+
+    pert, offsets = perturbed_tree(tree, params.raw(eta))
+    batch = TreeBatch(pert, check_limits=False)
+    q = sep.pose.q_all
+    u = q[list(tree.actuated)]
+    out = []
+    for cmd in (u, u + sep.correction @ eta):
+        sols = batch.forward(cmd[None], q[None], offsets[None])
+        out.append(pose_error_twist(sep.pose.oMp, sols.pose(0).oMp))
+    return out[0], out[1]

@@ -37,15 +37,16 @@ import numpy as np
 from pkmtol.error_model.separation import Separation
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.tree_parameters import TreeParameters
-from pkmtol.error_model.tree_wrenches import limb_fields
+from pkmtol.error_model.tree_wrenches import (
+    LOOP_RANK_TOLERANCE,  # noqa: E402
+    limb_fields,
+)
 from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError
 from pkmtol.kinematics.continuation import continuation
 from pkmtol.kinematics.solutions import Solutions
 from pkmtol.kinematics.tree_chain import TreeBatch
 from pkmtol.kinematics.tree_frames import forward, loop_jacobians, raw_world, to_k_prime
 from pkmtol.model.loop_tree import LoopTree
-
-from pkmtol.error_model.tree_wrenches import LOOP_RANK_TOLERANCE  # noqa: E402
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,9 +24,12 @@ from pkmtol.exceptions import (
     PlatformMismatchError,
     URDFError,
 )
+from pkmtol.model.constraint_limbs import limbs_from_constraint_models
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
+from pkmtol.model.loop_tree import LoopTree
 from pkmtol.model.taskspace import TaskSpace
+from pkmtol.model.tree_from_limbs import LimbRaw, tree_from_mechanism
 
 #: Mismatch allowed between the limbs' platform frames at ``home`` before Newton refines it.
 HOME_TOLERANCE_M = 1e-3
@@ -201,6 +204,59 @@ class Mechanism:
             home = None if homes is None else values.array(f"homes[{i}]", homes[i], ndim=1)
             limbs.append(make_limb(lname, model, act[i], platform_frame, home, None))
         return cls.from_limbs(name, limbs, reference_point_m, task_space, target_m, betas, design_beta)
+
+    def loop_tree(self) -> tuple[LoopTree, LimbRaw]:
+        """The mechanism as one tree with loop constraints (the general formulation), and its raw-error map.
+
+        See :func:`pkmtol.model.tree_from_limbs.tree_from_mechanism`.
+        """
+        return tree_from_mechanism(self)
+
+    @classmethod
+    def from_constraint_models(
+        cls,
+        model: pin.Model,
+        constraint_models: Sequence[Any],
+        actuated: Sequence[str],
+        task_frame: str,
+        *,
+        reference_point_m: Sequence[float] = (0.0, 0.0, 0.0),
+        task_space: TaskSpace,
+        name: str | None = None,
+        home: Sequence[float] | np.ndarray | None = None,
+        limb_names: Sequence[str] | None = None,
+        target_m: float = 5e-5,
+        betas: Sequence[float] = DEFAULT_BETAS,
+        design_beta: float = 2.0,
+    ) -> Mechanism:
+        """A mechanism from a Pinocchio 4 stack: one ``pin.Model`` (a tree) and its loop constraints.
+
+        Args:
+            model: The tree; 1-DOF revolute and prismatic joints.
+            constraint_models: ``pin.FrameAnchorConstraintModel`` (6D) and ``pin.PointAnchorConstraintModel``
+                (3D) loops, or legacy ``pin.RigidConstraintModel`` (``CONTACT_6D``/``CONTACT_3D``).
+            actuated: Names of the actuated joints.
+            task_frame: The frame of the platform (its link is the platform; P is given in it).
+            reference_point_m: P in that frame (3,) [m].
+            task_space: Task space of P in K.
+            name: Mechanism name (default ``model.name``).
+            home: Joint values (nq,) where the loops close (default ``pin.neutral``).
+            limb_names: Limb names, reference limb first (default ``limb1`` ...).
+            target_m: Δλ* [m].
+            betas: β series.
+            design_beta: β of the design case.
+
+        The stack is cut into limbs like a closed-loop URDF (docs/closed-loop.md); a stack the cut
+        refuses runs on the tree (:func:`pkmtol.model.tree_inputs.tree_from_constraint_models`).
+
+        Raises:
+            ClosedLoopError (and subclasses): a constraint, joint or frame pkmtol cannot take, or a
+                topology the cut into limbs refuses.
+        """
+        limbs, tree = limbs_from_constraint_models(
+            model, constraint_models, actuated, task_frame, home, limb_names, name
+        )
+        return cls.from_limbs(tree.name, limbs, reference_point_m, task_space, target_m, betas, design_beta)
 
     @classmethod
     def from_limbs(

@@ -35,6 +35,7 @@ import pinocchio as pin
 import pkmtol.values as values
 from pkmtol.exceptions import LostElementError, MJCFError, UnsupportedEqualityError
 from pkmtol.model.limb import Limb
+from pkmtol.model.loop_tree import LoopTree, frame_named, make_loops
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.mjcf_checks import (
     WeldSpec,
@@ -51,6 +52,7 @@ from pkmtol.model.reading import TomlReader
 from pkmtol.model.sidecar import Sidecar
 from pkmtol.model.taskspace import TaskSpace
 from pkmtol.model.tree_cut import TreeCut, cut_tree
+from pkmtol.model.tree_inputs import actuated_indices, home_vector, task_of
 from pkmtol.model.tree_limbs import cut_limbs
 
 #: What a message about a moving joint on no limb advises for an MJCF file.
@@ -371,3 +373,49 @@ def limbs_from_toml(folder: Path, r: TomlReader) -> list[Limb]:
         path, r.get("mjcf.platform_link", str, default=None), names, home, keyframe, actuated
     )
     return limbs
+
+
+def tree_from_mjcf(
+    path: Path | str,
+    *,
+    task_frame: str,
+    point_m: Sequence[float] = (0.0, 0.0, 0.0),
+    platform_frame: str | None = None,
+    actuated: Sequence[str] | None = None,
+    keyframe: str | None = None,
+    home: Mapping[str, float] | None = None,
+) -> LoopTree:
+    """An MJCF file as one tree: each ``<weld>`` a ``6d`` loop, each ``<connect>`` a ``3d`` one, wherever they close.
+
+    Args:
+        path: The MJCF file.
+        task_frame: The body or site whose point ``point_m`` is the task point.
+        point_m: The task point in that frame [m].
+        platform_frame: A frame on the platform body; default the task frame.
+        actuated: The actuated joints (default the ``<actuator>`` joints).
+        keyframe: The ``<key>`` whose ``qpos`` closes the loops (default ``home`` if the file has it).
+        home: Joint values by name instead of a keyframe.
+    """
+    mj = read_mjcf(path, actuated)
+    src = str(mj.path)
+    model = mj.model
+    loops = make_loops(model, [(lp.name, lp.frame_a, lp.frame_b, lp.kind) for lp in mj.loops], src)
+    if home is None:
+        key = keyframe if keyframe is not None else ("home" if "home" in mj.keyframes else None)
+        if key is not None and key not in mj.keyframes:
+            raise ClosedLoopError(
+                src, key, f"no <key name='{key}'> (keys: {', '.join(mj.keyframes) or 'none'})"
+            )
+        home = mj.keyframes[key] if key is not None else {}
+    tf, task = task_of(model, task_frame, point_m, src)
+    pf = -1 if platform_frame is None else frame_named(model, platform_frame, "platform frame", src)
+    return LoopTree(
+        name=str(model.name or Path(src).stem),
+        model=model,
+        loops=loops,
+        actuated=actuated_indices(model, mj.actuated, src),
+        task_frame=tf,
+        task=task,
+        platform_frame=pf,
+        home=home_vector(model, home, src),
+    )

@@ -21,14 +21,38 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
 
 from pkmtol.model.constraints import constraint_models
-from pkmtol.model.limb import LimbLoop
+from pkmtol.model.limb import Limb, LimbLoop
 from pkmtol.model.loop_tree import ErrorFrame, LoopTree, PointTask
-from pkmtol.model.mechanism import Mechanism
+
+
+class LimbMechanism(Protocol):
+    """What :func:`tree_from_mechanism` reads of a :class:`~pkmtol.model.mechanism.Mechanism`."""
+
+    @property
+    def name(self) -> str:
+        """Mechanism name."""
+        ...
+
+    @property
+    def limbs(self) -> tuple[Limb, ...]:
+        """The limbs, reference limb first."""
+        ...
+
+    @property
+    def reference_point_m(self) -> np.ndarray:
+        """P in the platform frame (3,) [m]."""
+        ...
+
+    @property
+    def task_normal(self) -> np.ndarray | None:
+        """The normal of a planar task, or None."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -55,7 +79,7 @@ class LimbRaw:
 
 
 def tree_from_mechanism(
-    mechanism: Mechanism, models: Sequence[pin.Model] | None = None
+    mechanism: LimbMechanism, models: Sequence[pin.Model] | None = None
 ) -> tuple[LoopTree, LimbRaw]:
     """The mechanism as one :class:`LoopTree`, and where its limbs' raw errors went.
 

@@ -5,7 +5,7 @@
   ``joint_name``/``joint_type`` ``FIXED``), loops between any two frames (between branches, below
   the platform, between rods); and the ``<constraint>`` elements proposed for urdfdom
   (:func:`urdf_constraints`).
-* :func:`tree_from_mjcf`: an MJCF file's ``<equality>`` welds and connects, wherever they close.
+* :func:`~pkmtol.model.mjcf.tree_from_mjcf`: an MJCF file's ``<equality>`` welds and connects, wherever they close.
 * :func:`tree_from_constraint_models`: a Pinocchio 4 stack, one ``pin.Model`` and its
   ``FrameAnchorConstraintModel`` / ``PointAnchorConstraintModel`` (or legacy ``RigidConstraintModel``).
 
@@ -36,7 +36,8 @@ from pkmtol.model.tree_cut import CLOSURE_FRAME, MOTOR_MARK, load_tree
 CONSTRAINT_TYPES = {"fixed": "6d", "weld": "6d", "spherical": "3d", "ball": "3d", "point": "3d"}
 
 
-def _home(model: pin.Model, home: Mapping[str, float] | None, source: str) -> np.ndarray:
+def home_vector(model: pin.Model, home: Mapping[str, float] | None, source: str) -> np.ndarray:
+    """Joint values (nq,) from values by joint name (others 0), or ClosedLoopError naming an unknown joint."""
     q = np.zeros(model.nq)
     for name, value in (home or {}).items():
         if not model.existJointName(name):
@@ -45,7 +46,8 @@ def _home(model: pin.Model, home: Mapping[str, float] | None, source: str) -> np
     return q
 
 
-def _actuated(model: pin.Model, names: Sequence[str] | None, source: str) -> tuple[int, ...]:
+def actuated_indices(model: pin.Model, names: Sequence[str] | None, source: str) -> tuple[int, ...]:
+    """Q indices of the actuated joints ``names`` (default: the joints named ``*mot*``), checked."""
     joints = list(model.names[1:])
     chosen = list(names) if names is not None else [n for n in joints if MOTOR_MARK in n]
     for n in chosen:
@@ -56,14 +58,18 @@ def _actuated(model: pin.Model, names: Sequence[str] | None, source: str) -> tup
     return tuple(joints.index(n) for n in chosen)
 
 
-def _task(model: pin.Model, task_frame: str, point_m: Sequence[float], source: str) -> tuple[int, PointTask]:
+def task_of(
+    model: pin.Model, task_frame: str, point_m: Sequence[float], source: str
+) -> tuple[int, PointTask]:
+    """The task frame's id and the point task of ``point_m`` in it."""
     fid = frame_named(model, task_frame, "task frame", source)
     return fid, PointTask(values.vector("point_m", point_m, 3))
 
 
 def _loop_name(pair: tuple[str, str], k: int) -> str:
     """A loop's name: the frames' common stem (``closedloop<k>``), a ``closedloop<k>`` side, their
-    common prefix (``arm1_rod2`` of ``arm1_rod2_socket``/``arm1_rod2_end``), else ``loop<k>``."""
+    common prefix (``arm1_rod2`` of ``arm1_rod2_socket``/``arm1_rod2_end``), else ``loop<k>``.
+    """
     stems = {re.sub(r"_[AB]$", "", name) for name in pair}
     if len(stems) == 1 and pair[0] != pair[1]:
         return stems.pop()
@@ -158,8 +164,8 @@ def tree_from_urdf(
             ],
             src,
         )
-    acts = _actuated(model, actuated if actuated is not None else side.motors, src)
-    tf, task = _task(model, task_frame, point_m, src)
+    acts = actuated_indices(model, actuated if actuated is not None else side.motors, src)
+    tf, task = task_of(model, task_frame, point_m, src)
     pf = tf if platform_frame is None else frame_named(model, platform_frame, "platform frame", src)
     return LoopTree(
         name=name or urdf.stem,
@@ -169,7 +175,7 @@ def tree_from_urdf(
         task_frame=tf,
         task=task,
         platform_frame=pf,
-        home=_home(model, home, src),
+        home=home_vector(model, home, src),
         error_frames=platform_attachment(model, pf),
     )
 
@@ -255,54 +261,6 @@ def _floats(text: str | None, src: str, name: str) -> list[float]:
     return v
 
 
-def tree_from_mjcf(
-    path: Path | str,
-    *,
-    task_frame: str,
-    point_m: Sequence[float] = (0.0, 0.0, 0.0),
-    platform_frame: str | None = None,
-    actuated: Sequence[str] | None = None,
-    keyframe: str | None = None,
-    home: Mapping[str, float] | None = None,
-) -> LoopTree:
-    """An MJCF file as one tree: each ``<weld>`` a ``6d`` loop, each ``<connect>`` a ``3d`` one, wherever they close.
-
-    Args:
-        path: The MJCF file.
-        task_frame: The body or site whose point ``point_m`` is the task point.
-        point_m: The task point in that frame [m].
-        platform_frame: A frame on the platform body; default the task frame.
-        actuated: The actuated joints (default the ``<actuator>`` joints).
-        keyframe: The ``<key>`` whose ``qpos`` closes the loops (default ``home`` if the file has it).
-        home: Joint values by name instead of a keyframe.
-    """
-    from pkmtol.model.mjcf import read_mjcf
-
-    mj = read_mjcf(path, actuated)
-    src = str(mj.path)
-    model = mj.model
-    loops = make_loops(model, [(lp.name, lp.frame_a, lp.frame_b, lp.kind) for lp in mj.loops], src)
-    if home is None:
-        key = keyframe if keyframe is not None else ("home" if "home" in mj.keyframes else None)
-        if key is not None and key not in mj.keyframes:
-            raise ClosedLoopError(
-                src, key, f"no <key name='{key}'> (keys: {', '.join(mj.keyframes) or 'none'})"
-            )
-        home = mj.keyframes[key] if key is not None else {}
-    tf, task = _task(model, task_frame, point_m, src)
-    pf = -1 if platform_frame is None else frame_named(model, platform_frame, "platform frame", src)
-    return LoopTree(
-        name=str(model.name or Path(src).stem),
-        model=model,
-        loops=loops,
-        actuated=_actuated(model, mj.actuated, src),
-        task_frame=tf,
-        task=task,
-        platform_frame=pf,
-        home=_home(model, home, src),
-    )
-
-
 def tree_from_constraint_models(
     model: pin.Model,
     constraint_models: Sequence[Any],
@@ -349,14 +307,14 @@ def tree_from_constraint_models(
                 int(m.addFrame(pin.Frame(fname, int(joint), 0, pin.SE3(place), pin.FrameType.OP_FRAME)))
             )
         loops.append(LimbLoop(cname, ids[0], ids[1], kind, (f"{cname}_A", f"{cname}_B")))
-    tf, task = _task(m, task_frame, point_m, src)
+    tf, task = task_of(m, task_frame, point_m, src)
     pf = -1 if platform_frame is None else frame_named(m, platform_frame, "platform frame", src)
     q0 = pin.neutral(m) if home is None else values.array("home", home, ndim=1)
     return LoopTree(
         name=src,
         model=m,
         loops=tuple(loops),
-        actuated=_actuated(m, list(actuated), src),
+        actuated=actuated_indices(m, list(actuated), src),
         task_frame=tf,
         task=task,
         platform_frame=pf,
