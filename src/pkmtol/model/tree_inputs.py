@@ -138,7 +138,7 @@ def tree_from_urdf(
         for cname, kind, (plink, pplace), (clink, cplace) in constraints:
             fa = _add_frame(model, f"{cname}_A", plink, pplace, src)
             fb = _add_frame(model, f"{cname}_B", clink, cplace, src)
-            loops.append(LimbLoop(cname, fa, fb, kind, (f"{cname}_A", f"{cname}_B")))
+            loops.append(LimbLoop(cname, fa, fb, kind, (model.frames[fa].name, model.frames[fb].name)))
         tloops: tuple[LimbLoop, ...] = tuple(loops)
     else:
         if isinstance(sidecar, Sidecar):
@@ -205,8 +205,12 @@ def _convention_pairs(model: pin.Model) -> list[tuple[str, str]]:
 
 
 def _add_frame(model: pin.Model, name: str, link: str, placement: pin.SE3, src: str) -> int:
-    """Add an OP frame ``name`` on link ``link`` at ``placement`` (in the link's frame); its id."""
+    """The frame at ``placement`` in link ``link``: the link's own frame for the identity, else a new
+    OP frame ``name`` (so that a constraint on the platform link itself is the platform frame, which
+    the platform attachment's error moves, as for a sidecar pair naming the link)."""
     body = frame_named(model, link, f"constraint frame '{name}'", src)
+    if placement.isIdentity():
+        return body
     f = model.frames[body]
     return int(
         model.addFrame(pin.Frame(name, f.parentJoint, body, f.placement * placement, pin.FrameType.OP_FRAME))
