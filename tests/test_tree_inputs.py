@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from loop_robots import ROOT
+from same_mechanism import assert_same_allocation
 
 from pkmtol.error_model.parameters import parameter_set
 from pkmtol.error_model.table import error_table
@@ -248,3 +249,9 @@ def test_delta_epr_runs_the_limb_pipeline_with_the_deltas_classes():
     assert [b.classes[i] for i in idx] == a.classes
     assert np.abs(b.sensitivity[idx] - a.sensitivity).max() < 1e-9
     assert parameter_set(epr, "urdf").names == b.pset.names
+
+
+def test_delta_epr_allocates_as_the_delta():
+    """robots/delta_epr and robots/delta allocate alike: classes, toleranced errors, worst pose,
+    tolerances (and the traditional method's) and the linear verification, to 1e-9."""
+    assert_same_allocation(load_mechanism(ROOT / "robots" / "delta"), load_mechanism(EPR))
