@@ -81,7 +81,12 @@ def _with_constraints(tmp_path):
 def test_urdfdom_constraint_elements_give_the_sidecar_mechanism(tmp_path):
     """The same loops as <constraint> elements (no sidecar): the same loops, poses and maps (1e-12)."""
     path = _with_constraints(tmp_path)
-    kw = {"task_frame": "platform", "point_m": [0, 0, -0.1], "home": DELTA_HOME, "actuated": [f"arm{i}_mot" for i in (1, 2, 3)]}
+    kw = {
+        "task_frame": "platform",
+        "point_m": [0, 0, -0.1],
+        "home": DELTA_HOME,
+        "actuated": [f"arm{i}_mot" for i in (1, 2, 3)],
+    }
     a = tree_from_urdf(EPR / "robot.urdf", **kw)
     b = tree_from_urdf(path, **kw)
     assert [lp.kind for lp in b.loops] == ["6d", "6d", "3d", "3d", "3d"]
@@ -97,10 +102,19 @@ def test_urdfdom_constraint_elements_give_the_sidecar_mechanism(tmp_path):
 @pytest.mark.parametrize(
     ("edit", "match"),
     [
-        (lambda t: t.replace('type="spherical"', 'type="revolute"', 1), "revolute.*cut the loop at a fixed or ball"),
-        (lambda t: t.replace('<parent link="arm1_rod2_socket"', '<parent link="nowhere"', 1), "no frame 'nowhere'"),
+        (
+            lambda t: t.replace('type="spherical"', 'type="revolute"', 1),
+            "revolute.*cut the loop at a fixed or ball",
+        ),
+        (
+            lambda t: t.replace('<parent link="arm1_rod2_socket"', '<parent link="nowhere"', 1),
+            "no frame 'nowhere'",
+        ),
         (lambda t: t.replace('name="closedloop2"', "", 1), "without a name"),
-        (lambda t: re.sub(r'<child_origin xyz="0 0 0"', '<child_origin xyz="0 0 x"', t, count=1), "not three"),
+        (
+            lambda t: re.sub(r'<child_origin xyz="0 0 0"', '<child_origin xyz="0 0 x"', t, count=1),
+            "not three",
+        ),
     ],
 )
 def test_bad_constraint_elements_are_named(tmp_path, edit, match):
@@ -118,7 +132,9 @@ def test_sidecar_errors_are_named(tmp_path):
     with pytest.raises(UnknownMotorError, match="arm4_mot"):
         tree_from_urdf(tmp_path / "robot.urdf", task_frame="platform")
     (tmp_path / "robot.yaml").write_text(
-        side.replace("joint_name: []", "joint_name: ['arm1_rod1_s1']").replace("joint_type: []", "joint_type: ['SPHERICAL']"),
+        side.replace("joint_name: []", "joint_name: ['arm1_rod1_s1']").replace(
+            "joint_type: []", "joint_type: ['SPHERICAL']"
+        ),
         encoding="utf-8",
     )
     with pytest.raises(ClosedLoopError, match="SPHERICAL.*three revolutes"):
@@ -168,9 +184,16 @@ def test_constraint_models_read_as_a_tree(robot):
     actuated = [cm.model.names[1 + a] for a in cm.actuated]
     platform = cm.model.frames[cm.platform_frame].name
     tree = tree_from_constraint_models(
-        cm.model, cm.constraints, actuated, platform, mech.reference_point_m, home=np.concatenate([lb.home for lb in mech.limbs])
+        cm.model,
+        cm.constraints,
+        actuated,
+        platform,
+        mech.reference_point_m,
+        home=np.concatenate([lb.home for lb in mech.limbs]),
     )
-    assert [lp.kind for lp in tree.loops] == ["6d" if type(c).__name__.startswith("Frame") else "3d" for c in cm.constraints]
+    assert [lp.kind for lp in tree.loops] == [
+        "6d" if type(c).__name__.startswith("Frame") else "3d" for c in cm.constraints
+    ]
     chain = ClosedChain(mech)
     pose = chain.inverse(mech.task_space.grid()[3], chain.home())
     batch = TreeBatch(tree)
@@ -181,7 +204,11 @@ def test_constraint_models_read_as_a_tree(robot):
     c, _ = loop_jacobians(tree, poses, raw_world(tree, poses))
     rows = []
     for lp in tree.loops:
-        block = c[0, : lp.rows] if not rows else c[0, sum(len(r) for r in rows) : sum(len(r) for r in rows) + lp.rows]
+        block = (
+            c[0, : lp.rows]
+            if not rows
+            else c[0, sum(len(r) for r in rows) : sum(len(r) for r in rows) + lp.rows]
+        )
         if lp.kind == "3d":
             block = poses.frame(tree, lp.frame_a)[0, :3, :3].T @ block
         rows.append(block)

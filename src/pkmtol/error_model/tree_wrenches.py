@@ -19,26 +19,46 @@ Poses where a rank differs from the others' are assembled in their own group, wi
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
+
 import numpy as np
 
 from pkmtol.error_model.separation import RANK_TOLERANCE, W_SINGULAR_CONDITION
 from pkmtol.error_model.tree_parameters import TreeParameters
 from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError, SingularPoseError
-from pkmtol.kinematics.tree_frames import TreePoses, loop_rows, raw_world, to_k_prime
+from pkmtol.kinematics import se3_batch
+from pkmtol.kinematics.tree_frames import TreePoses, adjoint_inverse, raw_world, to_k_prime
 from pkmtol.model.loop_tree import Limbs, LoopTree
 
 #: Relative singular-value threshold of the limbs' loop systems.
 LOOP_RANK_TOLERANCE = 1e-9
 
 
-def _limb_system(
-    tree: LoopTree, limb: Limbs, poses: TreePoses, raw: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``R_L`` (b, rows, nJ + 6), ``D_L`` (b, rows, k) and the k raw columns it has."""
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What one limb's rows need, fixed by the topology: columns, and each loop side's coefficients.
+
+    The variables are ``[dq_L, τ, the limb's raw errors]`` (m of them); a loop side moves by
+    ``G c`` with ``G`` the stacked spatial columns and ``c`` its coefficients (0, ±1).
+    """
+
+    joints: np.ndarray
+    rc: np.ndarray
+    six: tuple[int, ...]
+    three: tuple[int, ...]
+    ca: np.ndarray
+    cb: np.ndarray
+    ref: np.ndarray | None
+
+
+@lru_cache(maxsize=64)
+def _plan(tree: LoopTree, limb: Limbs) -> _Plan:
     pf = tree.platform_frame
     sup_p, mov_p = tree.support(pf), tree.moved_by(pf)
     pjoint = int(tree.model.frames[pf].parentJoint) - 1
     cols = list(limb.joints)
+    nj = len(cols)
     frames = [f for k in limb.loops for f in (tree.loops[k].frame_a, tree.loops[k].frame_b)]
     used = np.zeros(tree.n_raw, dtype=bool)
     for f in frames:
@@ -46,16 +66,14 @@ def _limb_system(
     if limb.holds_platform or any(pjoint >= 0 and tree.support(f)[pjoint] for f in frames):
         used |= mov_p
     rc = np.flatnonzero(used)
-    sub = raw[:, :, rc]
-    b = len(raw)
-    r_rows, d_rows = [], []
+    m = nj + 6 + len(rc)
 
-    def motion(x: int) -> tuple[np.ndarray, np.ndarray]:
+    def coefficients(x: int) -> np.ndarray:
         sup, mov = tree.support(x), tree.moved_by(x)[rc].astype(float)
-        v = np.zeros((b, 6, len(cols) + 6))
+        c = np.zeros(m)
         if pjoint >= 0 and sup[pjoint]:  # on the platform body or below it: through τ
             sup, mov = sup & ~sup_p, mov - mov_p[rc]
-            v[:, :, len(cols) :] = np.eye(6)
+            c[nj : nj + 6] = 1.0
         stray = set(np.flatnonzero(sup).tolist()) - set(cols)
         if stray:
             name = tree.model.frames[x].name
@@ -65,25 +83,72 @@ def _limb_system(
                 f"frame '{name}' is moved by joint '{tree.joint_names[min(stray)]}' of another limb; "
                 "a loop frame must hang on its own limb or on the platform",
             )
-        v[:, :, : len(cols)] = poses.columns[:, :, cols] * sup[cols]
-        return v, sub * mov
+        c[:nj] = sup[cols]
+        c[nj + 6 :] = mov
+        return c
 
-    for k in limb.loops:
-        lp = tree.loops[k]
-        ha, hb = poses.frame(tree, lp.frame_a), poses.frame(tree, lp.frame_b)
-        (va, ea), (vb, eb) = motion(lp.frame_a), motion(lp.frame_b)
-        both = loop_rows(lp.kind, ha, hb, np.concatenate([va, ea], axis=2), np.concatenate([vb, eb], axis=2))
-        r_rows.append(both[:, :, : va.shape[2]])
-        d_rows.append(both[:, :, va.shape[2] :])
+    loops = list(limb.loops)
+    six = tuple(k for k in loops if tree.loops[k].kind == "6d")
+    three = tuple(k for k in loops if tree.loops[k].kind == "3d")
+    order = list(six) + list(three)
+    ca = np.array([coefficients(tree.loops[k].frame_a) for k in order]).reshape(-1, m)
+    cb = np.array([coefficients(tree.loops[k].frame_b) for k in order]).reshape(-1, m)
+    ref = None
     if limb.holds_platform:
-        v = np.zeros((b, 6, len(cols) + 6))
-        v[:, :, : len(cols)] = -poses.columns[:, :, cols] * sup_p[cols]
-        v[:, :, len(cols) :] = np.eye(6)
-        r_rows.append(v)
-        d_rows.append(-(sub * mov_p[rc]))
-    if not r_rows:
-        return np.zeros((b, 0, len(cols) + 6)), np.zeros((b, 0, len(rc))), rc
-    return np.concatenate(r_rows, axis=1), np.concatenate(d_rows, axis=1), rc
+        ref = np.zeros(m)
+        ref[:nj] = -sup_p[cols].astype(float)
+        ref[nj : nj + 6] = 1.0
+        ref[nj + 6 :] = -mov_p[rc].astype(float)
+    return _Plan(np.array(cols, dtype=int), rc, six, three, ca, cb, ref)
+
+
+def _cross(p: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``p × w`` column by column: p (..., 3), w (..., 3, m)."""
+    p0, p1, p2 = p[..., 0, None], p[..., 1, None], p[..., 2, None]
+    w0, w1, w2 = w[..., 0, :], w[..., 1, :], w[..., 2, :]
+    return np.stack([p1 * w2 - p2 * w1, p2 * w0 - p0 * w2, p0 * w1 - p1 * w0], axis=-2)
+
+
+def _limb_system(
+    tree: LoopTree, limb: Limbs, poses: TreePoses, raw: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``R_L`` (b, rows, nJ + 6), ``D_L`` (b, rows, k) and the k raw columns it has.
+
+    Every loop of the limb at once: ``6d`` rows ``Jlog6(E) Ad(oMb⁻¹) G (c_b − c_a)``, ``3d`` rows
+    ``[I −[p_b×]] G c_b − [I −[p_a×]] G c_a``, then the platform's own rows ``G c_ref``.
+    """
+    plan = _plan(tree, limb)
+    b = len(raw)
+    nj = len(plan.joints)
+    g = np.empty((b, 6, nj + 6 + len(plan.rc)))
+    g[:, :, :nj] = poses.columns[:, :, plan.joints]
+    g[:, :, nj : nj + 6] = np.eye(6)
+    g[:, :, nj + 6 :] = raw[:, :, plan.rc]
+    parts = []
+    n6 = len(plan.six)
+    if n6:
+        ha = np.stack([poses.frame(tree, tree.loops[k].frame_a) for k in plan.six]).reshape(-1, 4, 4)
+        hb = np.stack([poses.frame(tree, tree.loops[k].frame_b) for k in plan.six]).reshape(-1, 4, 4)
+        rat = np.swapaxes(ha[:, :3, :3], 1, 2)
+        re = rat @ hb[:, :3, :3]
+        pe = (rat @ (hb[:, :3, 3] - ha[:, :3, 3])[:, :, None])[:, :, 0]
+        _, jl, _ = se3_batch.log6_and_jacobian(re, pe)
+        mm = (jl @ adjoint_inverse(hb)).reshape(n6, b, 6, 6)
+        diff = g[None] * (plan.cb[:n6] - plan.ca[:n6])[:, None, None, :]
+        parts.append(np.swapaxes(mm @ diff, 0, 1).reshape(b, 6 * n6, -1))
+    if plan.three:
+        pa = np.stack([poses.frame(tree, tree.loops[k].frame_a)[:, :3, 3] for k in plan.three])
+        pb = np.stack([poses.frame(tree, tree.loops[k].frame_b)[:, :3, 3] for k in plan.three])
+        va = g[None] * plan.ca[n6:, None, None, :]
+        vb = g[None] * plan.cb[n6:, None, None, :]
+        rows3 = (vb[:, :, :3] - _cross(pb, vb[:, :, 3:])) - (va[:, :, :3] - _cross(pa, va[:, :, 3:]))
+        parts.append(np.swapaxes(rows3, 0, 1).reshape(b, 3 * len(plan.three), -1))
+    if plan.ref is not None:
+        parts.append(g * plan.ref)
+    if not parts:
+        return np.zeros((b, 0, nj + 6)), np.zeros((b, 0, len(plan.rc))), plan.rc
+    rows = np.concatenate(parts, axis=1)
+    return rows[:, :, : nj + 6], rows[:, :, nj + 6 :], plan.rc
 
 
 def _ranks(sv: np.ndarray, tol: float) -> np.ndarray:

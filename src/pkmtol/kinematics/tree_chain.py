@@ -252,7 +252,7 @@ class TreeBatch:
             active, a, res, norm = active[keep], a[keep], res[keep], norm[keep]
             if not active.size:
                 break
-            step = newton_steps(a, res)
+            step = newton_steps(a, res, compiled=True)
             big = np.abs(step).max(axis=1, initial=0.0)
             step *= np.where(big > 0.5, 0.5 / np.where(big > 0.5, big, 1.0), 1.0)[:, None]
             sub = q[active]
