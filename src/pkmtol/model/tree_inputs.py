@@ -168,7 +168,7 @@ def tree_from_urdf(
     tf, task = task_of(model, task_frame, point_m, src)
     pf = tf if platform_frame is None else frame_named(model, platform_frame, "platform frame", src)
     return LoopTree(
-        name=name or urdf.stem,
+        name=name or str(model.name) or urdf.stem,
         model=model,
         loops=tloops,
         actuated=acts,
