@@ -1,4 +1,4 @@
-"""Write (or check) a limb-folder robot the way example-parallel-robots writes one: one URDF tree, loops in a sidecar.
+"""Write (or check) a limb-folder robot the way example-parallel-robots writes one: one URDF tree, a sidecar.
 
 The output (``robot.urdf``, ``robot.yaml``, ``mechanism.toml``) is the "extended URDF" of
 Gepetto/example-parallel-robots: the limbs' URDFs merged at the common base link, limb 1 carrying
@@ -97,11 +97,15 @@ def generate(folder: Path) -> dict[str, str]:
         robot.append(el)
     ET.indent(robot, space="  ")
     urdf = '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-    yaml = f"closed_loop: {[list(p) for p in loops]}\ntype: {types}\nname_mot: {motors}\njoint_name: []\njoint_type: []\n"
+    yaml = (
+        f"closed_loop: {[list(p) for p in loops]}\ntype: {types}\nname_mot: {motors}\n"
+        "joint_name: []\njoint_type: []\n"
+    )
     tv = _BASE.toml_value
     lines = [
         f"# {mech.name} written the way Gepetto/example-parallel-robots writes a closed-loop robot: one URDF",
-        "# tree (robot.urdf) and its sidecar (robot.yaml); loops close between the rods (docs/closed-loop.md).",
+        "# tree (robot.urdf) and its sidecar (robot.yaml); loops close between the rods",
+        "# (docs/closed-loop.md).",
         f"# Generated from {folder.name}/ by scripts/limbs_to_epr.py; do not edit.",
         f"name = {tv(mech.name + '_epr')}",
         f"description = {tv(doc.get('description', '') + ' (example-parallel-robots form)')}",

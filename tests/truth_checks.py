@@ -64,7 +64,7 @@ def tree_mismatches(tree, params, sep, eta) -> tuple[float, float]:
 
 
 def tree_pose_errors(tree, params, sep, eta) -> tuple[np.ndarray, np.ndarray]:
-    """The exact platform pose errors (K') of the tree perturbed by ``eta``: actuators nominal, then corrected."""
+    """Exact platform pose errors (K') of the tree perturbed by ``eta``: actuators nominal, then corrected."""
     from pkmtol.kinematics.tree_chain import TreeBatch, perturbed_tree
 
     pert, offsets = perturbed_tree(tree, params.raw(eta))

@@ -35,6 +35,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.error_model.separation import Separation, separate
     from pkmtol.error_model.sweep import Sweep, sweep
     from pkmtol.error_model.table import ErrorTable, error_table
+    from pkmtol.error_model.tree_parameters import TreeParameters, tree_urdf_set
+    from pkmtol.error_model.tree_separation import frame_maps, separate_tree, tree_sweep
     from pkmtol.exceptions import (
         ClosedLoopError,
         ClosureFrameError,
@@ -71,14 +73,18 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     )
     from pkmtol.kinematics.closed_chain import ClosedChain, Pose
     from pkmtol.kinematics.perturbation import perturbed_limb_models
+    from pkmtol.kinematics.tree_chain import TreeBatch, TreeChain
     from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
     from pkmtol.model.constraints import ConstrainedModel, constraint_models
     from pkmtol.model.drawing import DrawingSettings
     from pkmtol.model.limb import Limb, LimbLoop
     from pkmtol.model.loader import load_mechanism
+    from pkmtol.model.loop_tree import LoopTree, PointTask
     from pkmtol.model.mechanism import Mechanism
-    from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
+    from pkmtol.model.mjcf import load_mjcf, mjcf_limbs, tree_from_mjcf
     from pkmtol.model.taskspace import TaskSpace
+    from pkmtol.model.tree_from_limbs import tree_from_mechanism
+    from pkmtol.model.tree_inputs import tree_from_constraint_models, tree_from_urdf
     from pkmtol.present.html_report import write_report
     from pkmtol.present.outputs import write_outputs
     from pkmtol.present.tables import summary_text, to_json
@@ -103,6 +109,7 @@ _EXPORTS = {
     "Limb": "pkmtol.model.limb",
     "LimbLoop": "pkmtol.model.limb",
     "LoopMismatchError": "pkmtol.exceptions",
+    "LoopTree": "pkmtol.model.loop_tree",
     "LostElementError": "pkmtol.exceptions",
     "MJCFError": "pkmtol.exceptions",
     "Mechanism": "pkmtol.model.mechanism",
@@ -119,6 +126,7 @@ _EXPORTS = {
     "PkmtolWarning": "pkmtol.exceptions",
     "PlatformMismatchError": "pkmtol.exceptions",
     "PointLoopError": "pkmtol.exceptions",
+    "PointTask": "pkmtol.model.loop_tree",
     "Pose": "pkmtol.kinematics.closed_chain",
     "PoseSearch": "pkmtol.design.pose_search",
     "ResourceLimitError": "pkmtol.exceptions",
@@ -130,6 +138,9 @@ _EXPORTS = {
     "TaskSpace": "pkmtol.model.taskspace",
     "TendonError": "pkmtol.exceptions",
     "Traditional": "pkmtol.design.job",
+    "TreeBatch": "pkmtol.kinematics.tree_chain",
+    "TreeChain": "pkmtol.kinematics.tree_chain",
+    "TreeParameters": "pkmtol.error_model.tree_parameters",
     "URDFError": "pkmtol.exceptions",
     "UnknownJointError": "pkmtol.exceptions",
     "UnknownKeyError": "pkmtol.exceptions",
@@ -144,6 +155,7 @@ _EXPORTS = {
     "error_table": "pkmtol.error_model.table",
     "exact_reliability": "pkmtol.design.reliability",
     "fosm_tolerances": "pkmtol.design.fosm",
+    "frame_maps": "pkmtol.error_model.tree_separation",
     "load_closed_loop": "pkmtol.model.closed_loop",
     "load_mechanism": "pkmtol.model.loader",
     "load_mjcf": "pkmtol.model.mjcf",
@@ -156,10 +168,17 @@ _EXPORTS = {
     "search_sensitive_pose": "pkmtol.design.pose_search",
     "sensitivities": "pkmtol.error_model.accuracy",
     "separate": "pkmtol.error_model.separation",
+    "separate_tree": "pkmtol.error_model.tree_separation",
     "sign_off": "pkmtol.design.signoff",
     "summary_text": "pkmtol.present.tables",
     "sweep": "pkmtol.error_model.sweep",
     "to_json": "pkmtol.present.tables",
+    "tree_from_constraint_models": "pkmtol.model.tree_inputs",
+    "tree_from_mechanism": "pkmtol.model.tree_from_limbs",
+    "tree_from_mjcf": "pkmtol.model.mjcf",
+    "tree_from_urdf": "pkmtol.model.tree_inputs",
+    "tree_sweep": "pkmtol.error_model.tree_separation",
+    "tree_urdf_set": "pkmtol.error_model.tree_parameters",
     "verify": "pkmtol.design.verification",
     "write_outputs": "pkmtol.present.outputs",
     "write_report": "pkmtol.present.html_report",
@@ -185,6 +204,7 @@ __all__ = [
     "Limb",
     "LimbLoop",
     "LoopMismatchError",
+    "LoopTree",
     "LostElementError",
     "MJCFError",
     "Mechanism",
@@ -201,6 +221,7 @@ __all__ = [
     "PkmtolWarning",
     "PlatformMismatchError",
     "PointLoopError",
+    "PointTask",
     "Pose",
     "PoseSearch",
     "ResourceLimitError",
@@ -212,6 +233,9 @@ __all__ = [
     "TaskSpace",
     "TendonError",
     "Traditional",
+    "TreeBatch",
+    "TreeChain",
+    "TreeParameters",
     "URDFError",
     "UnknownJointError",
     "UnknownKeyError",
@@ -226,6 +250,7 @@ __all__ = [
     "error_table",
     "exact_reliability",
     "fosm_tolerances",
+    "frame_maps",
     "load_closed_loop",
     "load_mechanism",
     "load_mjcf",
@@ -238,10 +263,17 @@ __all__ = [
     "search_sensitive_pose",
     "sensitivities",
     "separate",
+    "separate_tree",
     "sign_off",
     "summary_text",
     "sweep",
     "to_json",
+    "tree_from_constraint_models",
+    "tree_from_mechanism",
+    "tree_from_mjcf",
+    "tree_from_urdf",
+    "tree_sweep",
+    "tree_urdf_set",
     "verify",
     "write_outputs",
     "write_report",

@@ -72,7 +72,7 @@ def from_limb_set(raw: LimbRaw, pset: ParameterSet) -> TreeParameters:
     """The tree's form of a limb parameter set (:class:`~pkmtol.error_model.parameters.ParameterSet`).
 
     Args:
-        raw: Where the limbs' raw errors sit in the tree (:func:`~pkmtol.model.tree_from_limbs.tree_from_mechanism`).
+        raw: Where the limbs' raw errors sit in the tree (``tree_from_mechanism``).
         pset: The limbs' parameter set (same mechanism).
     """
     params = pset.parameters

@@ -1,4 +1,4 @@
-"""The error model of a :class:`~pkmtol.model.loop_tree.LoopTree`: loops eliminated through the constraint Jacobian.
+"""The error model of a :class:`~pkmtol.model.loop_tree.LoopTree`: its loops eliminated, its limbs separated.
 
 At a closed pose the loops' rows are ``C dq + D δ = 0`` (``C`` the constraint Jacobian, ``D`` its
 columns per raw error, :func:`loop_jacobians`) and a frame f moves by ``T_f dq + E_f δ``
@@ -67,7 +67,7 @@ class FrameMaps:
 
 
 def _pinv(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Pseudo-inverse (b, k, r), left null basis (b, r, r − rank), right null basis, ranks (b,) of stacked ``a``."""
+    """Pseudo-inverse, left and right null bases and ranks (b,) of stacked ``a`` (b, r, k), by SVD."""
     u, sv, vt = np.linalg.svd(a)
     ranks = np.sum(sv > LOOP_RANK_TOLERANCE * np.maximum(sv[:, :1] if sv.shape[1] else 1.0, 1.0), axis=1)
     b, rows, cols = a.shape
@@ -164,7 +164,7 @@ def tree_sweep(
     batch: TreeBatch | None = None,
     guesses: np.ndarray | None = None,
 ) -> Sweep:
-    """Inverse kinematics at every point and the separation there (a :class:`~pkmtol.error_model.sweep.Sweep`).
+    """Inverse kinematics at every point and the separation there (a :class:`Sweep`).
 
     Without ``guesses`` the points are reached by continuation from the refined home.
 

@@ -1,4 +1,4 @@
-"""The limbs of a :class:`~pkmtol.model.loop_tree.LoopTree` at solved poses: motion spaces, wrenches, error columns.
+"""The limbs of a :class:`~pkmtol.model.loop_tree.LoopTree` at solved poses: motion spaces, wrenches, columns.
 
 For limb L (:attr:`LoopTree.limbs`) the unknowns are its joints' motions ``dq_L`` and the
 platform frame's spatial twist τ. Its loops give rows; a loop frame on the platform body, or hanging
@@ -28,7 +28,8 @@ from pkmtol.error_model.separation import RANK_TOLERANCE, W_SINGULAR_CONDITION
 from pkmtol.error_model.tree_parameters import TreeParameters
 from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError, SingularPoseError
 from pkmtol.kinematics import se3_batch
-from pkmtol.kinematics.tree_frames import TreePoses, adjoint_inverse, raw_world, to_k_prime
+from pkmtol.kinematics.stacked_solve import condition_bound
+from pkmtol.kinematics.tree_frames import TreePoses, adjoint_inverse, raw_world
 from pkmtol.model.loop_tree import Limbs, LoopTree
 
 #: Relative singular-value threshold of the limbs' loop systems.
@@ -172,7 +173,16 @@ class _Split:
         self.groups: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         self.where = np.zeros(b, dtype=int)
         rest = np.arange(b)
-        if 0 < r <= c:
+        if 0 < r == c:  # square: its inverse, certified by the bound κ_F (compiled when numba runs)
+            bound, inv = condition_bound(a)
+            fro = np.sqrt(np.einsum("bij,bij->b", a, a))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sure = np.isfinite(bound) & (fro / (np.sqrt(r) * bound) > tol * np.maximum(fro, 1.0))
+            idx = np.flatnonzero(sure)
+            if idx.size:
+                self._store(r, idx, np.zeros((idx.size, c, 0)), inv[idx], np.zeros((idx.size, r, 0)))
+            rest = np.flatnonzero(~sure)
+        elif 0 < r < c:
             q, t = np.linalg.qr(np.swapaxes(a, 1, 2), mode="complete")
             t = t[:, :r]
             try:
@@ -256,8 +266,8 @@ def _limb_part(
     act = [limb.joints.index(a) for a in tree.actuated if a in limb.joints]
     null, pinv, left = split
     x = -(pinv @ d)  # a solution of R x = −D (b, nJ + 6, k)
-    o_p = poses.frame(tree, tree.platform_frame)[at, :3, 3]
-    s = to_k_prime(o_p, null[:, nj:])
+    to_k = _k_prime(poses.frame(tree, tree.platform_frame)[at, :3, 3])
+    s = to_k @ null[:, nj:]
     if act:  # hold the limb's actuators: move x along null(R) so that its dq_a vanish
         q_a = null[:, act]  # (b, f_L, d)
         if len(act) == 1:
@@ -274,11 +284,22 @@ def _limb_part(
         "act": act,
         "null": null,
         "s": s,
-        "e": to_k_prime(o_p, tau),
+        "e": to_k @ tau,
         "rc": rc,
         "inner": np.swapaxes(left, 1, 2) @ d,
         "split_s": _Split(np.swapaxes(s, 1, 2), RANK_TOLERANCE),
     }
+
+
+def _k_prime(p: np.ndarray) -> np.ndarray:
+    """Shape (b, 6, 6): spatial twists to K' twists at points ``p`` (b, 3): ``[I −[p×]; 0 I]``."""
+    out = np.zeros((len(p), 6, 6))
+    out[:, np.arange(6), np.arange(6)] = 1.0
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    out[:, 0, 4], out[:, 0, 5] = z, -y
+    out[:, 1, 3], out[:, 1, 5] = -z, x
+    out[:, 2, 3], out[:, 2, 4] = y, -x
+    return out
 
 
 def _take(part: dict, sub: np.ndarray) -> dict:
@@ -299,51 +320,41 @@ def _assemble(
     errors: list[KinematicsError | None] = [None] * b
     wa, wc, ya, yc, lam, act_limb, con_limb, inner = [], [], [], [], [], [], [], []
     cols = np.zeros((b, 6, n))
-    best = np.zeros((b, n))
     for p in parts:
         sl = sel[p["rc"]]
         pc = np.flatnonzero(np.any(sl != 0.0, axis=0))  # the parameters this limb sees
         e_pc = (p["e"].reshape(-1, len(p["rc"])) @ sl[:, pc]).reshape(b, 6, len(pc))
-        norms = np.sqrt(np.einsum("bjm,bjm->bm", e_pc, e_pc))
-        take = norms > best[:, pc]
-        cols[:, :, pc] = np.where(take[:, None, :], e_pc, cols[:, :, pc])
-        best[:, pc] = np.maximum(best[:, pc], norms)
-
-        def rows_of(w: np.ndarray) -> np.ndarray:
-            row = np.zeros((b, n))
-            row[:, pc] = np.einsum("bj,bjm->bm", w, e_pc)
-            return row
-
-        for k in range(p["wc"].shape[2]):
-            w = np.ascontiguousarray(p["wc"][:, :, k])
-            wc.append(w)
-            con_limb.append(p["limb"])
-            yc.append(rows_of(w))
+        cols[:, :, pc] += e_pc  # each parameter's twist through the limbs that see it (one, for limbs)
+        ws = [p["wc"][:, :, k] for k in range(p["wc"].shape[2])]
+        con_limb += [p["limb"]] * len(ws)
+        n_c = len(ws)
         for a in p["act"]:
             rhs = p["null"][:, a, :]  # dq_a of each null motion (b, d)
             w = (p["s_pinv"] @ rhs[:, :, None])[:, :, 0]  # the minimum-norm w with Sᵀ w = rhs
             miss = np.abs(np.einsum("bjd,bj->bd", p["s"], w) - rhs).max(axis=1, initial=0.0)
-            for k in np.flatnonzero(~(miss < 1e-6)):
-                joint = tree.joint_names[p["limb_obj"].joints[a]]
-                errors[int(k)] = errors[int(k)] or MobilityError(
-                    f"limb {p['limb'] + 1} of '{tree.name}': actuated joint '{joint}' moves the platform only "
-                    f"within the passive motions at P = {where[k]} m (actuation singularity)"
-                )
             f_norm = np.linalg.norm(w[:, :3], axis=1)
             scale = np.where(
                 f_norm > 1e-9 * np.linalg.norm(w, axis=1), f_norm, np.linalg.norm(w[:, 3:], axis=1)
             )
-            for k in np.flatnonzero(~(scale > 0)):
+            for k in np.flatnonzero(~(miss < 1e-6) | ~(scale > 0)):
+                joint = tree.joint_names[p["limb_obj"].joints[a]]
                 errors[int(k)] = errors[int(k)] or MobilityError(
-                    f"limb {p['limb'] + 1} of '{tree.name}': an actuated joint cannot move with the loops closed "
-                    f"at P = {where[k]} m (its loops lock it)"
+                    f"limb {p['limb'] + 1} of '{tree.name}': actuated joint '{joint}' moves the platform "
+                    f"only within the passive motions at P = {where[k]} m (actuation singularity, or its "
+                    "loops lock it)"
                 )
-            w = w / np.where(scale > 0, scale, 1.0)[:, None]
             scale = np.where(scale > 0, scale, 1.0)
-            wa.append(w)
+            ws.append(w / scale[:, None])
             lam.append(1.0 / scale)
             act_limb.append(p["limb"])
-            ya.append(rows_of(w))
+        if ws:
+            w_l = np.stack(ws, axis=2)  # (b, 6, m_L): constraint wrenches, then actuation wrenches
+            y_l = np.zeros((b, len(ws), n))
+            y_l[:, :, pc] = np.swapaxes(w_l, 1, 2) @ e_pc
+            wc += [w_l[:, :, k] for k in range(n_c)]
+            yc += [y_l[:, k] for k in range(n_c)]
+            wa += [w_l[:, :, k] for k in range(n_c, len(ws))]
+            ya += [y_l[:, k] for k in range(n_c, len(ws))]
         if p["inner"].shape[1]:
             inner.append(p["inner"] @ sl)
     f, c = len(wa), len(wc)
@@ -386,33 +397,34 @@ def _assemble(
     j_c, j_t = to_p @ unc, to_p @ twist_map
     actuation = w_inv_t[:, :, :f] * lam_arr[:, None, :]
     out: list[dict | KinematicsError] = []
-    for k in range(b):
-        if errors[k] is not None:
-            out.append(errors[k])  # type: ignore[arg-type]
-        elif not usable[k]:
-            out.append(SingularPoseError("the wrench matrix W", float(cond[k]), where[k]))
+    for pos in range(b):
+        failed = errors[pos]
+        if failed is not None:
+            out.append(failed)
+        elif not usable[pos]:
+            out.append(SingularPoseError("the wrench matrix W", float(cond[pos]), where[pos]))
         else:
             out.append(
                 {
-                    "joint_twists": tuple(p["s"][k] for p in parts),
-                    "error_columns": cols[k],
-                    "W_a": w_all[k, :, :f],
-                    "W_c": w_all[k, :, f:],
+                    "joint_twists": tuple(p["s"][pos] for p in parts),
+                    "error_columns": cols[pos],
+                    "W_a": w_all[pos, :, :f],
+                    "W_c": w_all[pos, :, f:],
                     "constraint_limb": np.array(con_limb, dtype=int),
                     "actuated_limb": np.array(act_limb, dtype=int),
-                    "Lambda_a": lam_arr[k],
-                    "Y_a": y_a[k],
-                    "Y_c": y_c[k],
-                    "W_condition": float(cond[k]),
-                    "twist_map": twist_map[k],
-                    "correction": correction[k],
-                    "uncompensated_map": unc[k],
-                    "lever_m": lever[k],
-                    "J": j_c[k],
-                    "J_total": j_t[k],
+                    "Lambda_a": lam_arr[pos],
+                    "Y_a": y_a[pos],
+                    "Y_c": y_c[pos],
+                    "W_condition": float(cond[pos]),
+                    "twist_map": twist_map[pos],
+                    "correction": correction[pos],
+                    "uncompensated_map": unc[pos],
+                    "lever_m": lever[pos],
+                    "J": j_c[pos],
+                    "J_total": j_t[pos],
                     "redundancy": f + c - 6 + n_inner,
-                    "incompatible_map": incompatible[k],
-                    "actuation_map": actuation[k],
+                    "incompatible_map": incompatible[pos],
+                    "actuation_map": actuation[pos],
                 }
             )
     return out

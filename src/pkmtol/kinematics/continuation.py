@@ -3,13 +3,30 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any, Protocol
 
 import numpy as np
 
 from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics import acceleration
-from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.solutions import Solutions
+
+
+class InverseBatch(Protocol):
+    """What the continuation needs of a batched solver.
+
+    :class:`~pkmtol.kinematics.batch.BatchChain` of limbs, or
+    :class:`~pkmtol.kinematics.tree_chain.TreeBatch` of one tree; its ``chain`` solves one pose
+    (``chain.inverse(target, q0).q_all``).
+    """
+
+    n_joints: int
+    chain: Any
+
+    def inverse(self, targets_m: np.ndarray, guesses: np.ndarray) -> Solutions:
+        """Batched inverse kinematics (the last three rows of each system are the task)."""
+        ...
+
 
 #: Problems solved in one lockstep batch (bounds the working memory).
 CHUNK = 512
@@ -18,7 +35,7 @@ REACH = 3.0
 
 
 def continuation(
-    batch: BatchChain,
+    batch: InverseBatch,
     targets_m: np.ndarray,
     start: np.ndarray,
     progress: Callable[[int], object] | None = None,
@@ -94,7 +111,7 @@ def continuation(
     return Solutions.scatter(solved, waves, m)
 
 
-def _first(batch: BatchChain, point: np.ndarray, start: np.ndarray) -> Solutions:
+def _first(batch: InverseBatch, point: np.ndarray, start: np.ndarray) -> Solutions:
     """The first point, from ``start``, by whichever of two routes is the cheaper.
 
     In numpy, a lockstep batch of one problem pays the batch's fixed cost at every iteration; the

@@ -115,16 +115,21 @@ class TreeBatch:
         q0 = np.array(guesses, dtype=float).reshape(len(targets), self.n_joints)
         sols = self._newton(q0, np.ones(self.n_joints, dtype=bool), targets, "inverse kinematics")
         errors = list(sols.errors)
+        outside = np.asarray(
+            ((sols.q < self.lower - 1e-12) | (sols.q > self.upper + 1e-12)).any(axis=1)
+        ).tolist()
+        bad_rows = [bool(x) and self.check_limits for x in outside]
         for k, err in enumerate(errors):
             if isinstance(err, ConvergenceError):
                 errors[k] = UnreachableTargetError(
                     targets[k],
                     "the loop and task equations have no solution near the initial guess "
-                    f"({err.residual:.2g} left; the largest gap is at loop '{self.worst_loop(sols.q[k])[1]}')",
+                    f"({err.residual:.2g} left; the largest gap is at loop "
+                    f"'{self.worst_loop(sols.q[k])[1]}')",
                 )
             elif isinstance(err, SingularPoseError):
                 errors[k] = SingularPoseError(err.what, err.condition, targets[k])
-            elif err is None and self.check_limits:
+            elif err is None and bad_rows[k]:
                 errors[k] = self.limit_violation(sols.q[k], targets[k])
         return replace(sols, errors=tuple(errors))
 
@@ -149,7 +154,7 @@ class TreeBatch:
         return self._newton(q, free, None, "forward kinematics")
 
     def predict(self, sols: Solutions, index: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
-        """First-order guesses for ``targets_m`` from solved inverse problems ``index`` (``q + A⁻¹[0; Δp]``)."""
+        """First-order guesses for ``targets_m`` from solved problems ``index``: ``q + A⁻¹[0; Δp]``."""
         index = np.asarray(index, dtype=int)
         dp = np.asarray(targets_m, dtype=float).reshape(-1, 3) - sols.p_m[index]
         return sols.q[index] + (sols.system_inverse[index][:, :, -3:] @ dp[:, :, None])[:, :, 0]
@@ -261,9 +266,9 @@ class TreeBatch:
             prev[active] = norm
         for k in active:
             res_k, jac_k, _ = self.system(q[k][None], None if targets is None else targets[k][None])
-            cond = exact_condition(jac_k[0][:, free])
-            if cond > SINGULAR_CONDITION and prev[k] < SINGULAR_RESIDUAL:
-                errors[int(k)] = SingularPoseError(f"the {what} Jacobian", cond)
+            cond_k = exact_condition(jac_k[0][:, free])
+            if cond_k > SINGULAR_CONDITION and prev[k] < SINGULAR_RESIDUAL:
+                errors[int(k)] = SingularPoseError(f"the {what} Jacobian", cond_k)
             else:
                 errors[int(k)] = ConvergenceError(what, float(prev[k]), MAX_ITERATIONS)
         idx = np.concatenate(solved) if solved else np.zeros(0, dtype=int)

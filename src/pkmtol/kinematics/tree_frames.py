@@ -1,4 +1,4 @@
-"""Forward kinematics of a :class:`~pkmtol.model.loop_tree.LoopTree` stacked over poses, in world (spatial) twists.
+"""Forward kinematics of a :class:`~pkmtol.model.loop_tree.LoopTree` stacked over poses, in spatial twists.
 
 For ``b`` configurations at once, joint by joint in tree order (numpy, no call into Pinocchio per
 pose): each joint's placement ``oMi_j = oMi_parent · jointPlacements[j] · exp(S_j q_j)`` and its

@@ -1,4 +1,4 @@
-"""Numba kernel of a tree's stacked forward kinematics (:mod:`pkmtol.kinematics.tree_frames`), the ``fast`` extra.
+"""Numba kernels of a tree's forward kinematics and loop rows (the ``fast`` extra).
 
 The same arithmetic as :func:`pkmtol.kinematics.tree_frames.forward` (joint placements, pre-motion
 frames, spatial joint columns), pose by pose in compiled loops instead of numpy operations on
@@ -129,7 +129,7 @@ def tree_system(
     jac: np.ndarray,
     near: np.ndarray,
 ) -> None:
-    """Loop rows (and task rows when ``targets`` has rows) of :class:`~pkmtol.kinematics.tree_chain.TreeBatch`.
+    """Loop rows (and task rows when ``targets`` has rows) of a :class:`TreeBatch`.
 
     The formulas of :func:`pkmtol.kinematics.tree_chain.loop_rows_world` pose by pose: a ``6d``
     loop ``log6(oMa⁻¹ oMb)`` and ``Jlog6 Ad(oMb⁻¹) (T_b − T_a)``, a ``3d`` loop ``p_b − p_a`` and

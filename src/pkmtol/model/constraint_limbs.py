@@ -1,4 +1,4 @@
-"""A Pinocchio 4 constraint stack cut into limbs, for :meth:`pkmtol.model.mechanism.Mechanism.from_constraint_models`.
+"""A Pinocchio 4 constraint stack cut into limbs (``Mechanism.from_constraint_models``).
 
 The stack (one ``pin.Model`` and its frame or point anchors) is read as a
 :class:`~pkmtol.model.loop_tree.LoopTree` (:func:`~pkmtol.model.tree_inputs.tree_from_constraint_models`:

@@ -49,8 +49,44 @@ class ErrorFrame:
     moves: tuple[int, ...]
 
 
+class TaskRows:
+    """What a task adds to the solve and the error model (the interface a new task implements).
+
+    ``rows`` equations ``residual(h, targets)`` (b, rows) with Jacobian ``jacobian(h, world)``
+    (b, rows, k) from the task frame's placements ``h`` (b, 4, 4) and spatial motions ``world``
+    (b, 6, k); ``of_twist(lever)`` (b, 3, 6) maps the platform's K' twist to the task error;
+    ``position(h)`` is the task point (b, 3), ``projection()`` the part of its error that counts.
+    :class:`PointTask` is the position of a point (optionally in a plane); a task of position and
+    tool-axis direction (issue 27) is another subclass. The compiled rows run for :class:`PointTask`
+    only; any other task takes the numpy rows.
+    """
+
+    rows = 3
+    point_m: np.ndarray
+
+    def projection(self) -> np.ndarray:
+        """Shape (3, 3): the part of the task point's error that counts."""
+        raise NotImplementedError
+
+    def position(self, h: np.ndarray) -> np.ndarray:
+        """The task point in K (b, 3) [m]."""
+        raise NotImplementedError
+
+    def residual(self, h: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """Task residual (b, rows)."""
+        raise NotImplementedError
+
+    def jacobian(self, h: np.ndarray, world: np.ndarray) -> np.ndarray:
+        """Task rows' Jacobian (b, rows, k)."""
+        raise NotImplementedError
+
+    def of_twist(self, lever_m: np.ndarray) -> np.ndarray:
+        """Shape (b, 3, 6): the task error per K' twist at the platform frame's origin."""
+        raise NotImplementedError
+
+
 @dataclass(frozen=True)
-class PointTask:
+class PointTask(TaskRows):
     """Task rows: the position of the point ``point_m`` of the task frame (3 rows, in K).
 
     Attributes:
@@ -114,7 +150,7 @@ class LoopTree:
         loops: The loop constraints (frame ids in ``model``); frame b carries the closure error.
         actuated: Indices into ``q`` of the actuated joints.
         task_frame: Frame id of the task frame (any frame of the tree).
-        task: The task rows (:class:`PointTask`).
+        task: The task rows (a :class:`TaskRows`: :class:`PointTask`).
         platform_frame: A frame on the platform body: the body whose removal splits the mechanism
             into its limbs (the actuation-wrench choice, docs/theory.md). Default: the task frame.
         home: Joint values near which every loop closes (nq,) [rad or m].
@@ -131,7 +167,7 @@ class LoopTree:
     loops: tuple[LimbLoop, ...]
     actuated: tuple[int, ...]
     task_frame: int
-    task: PointTask
+    task: TaskRows
     platform_frame: int = -1
     home: np.ndarray = field(default_factory=lambda: np.zeros(0))
     loop_moves: tuple[tuple[int, ...], ...] = ()
@@ -192,8 +228,10 @@ class LoopTree:
         if home.shape != (m.nq,) or not np.all(np.isfinite(home)):
             raise InvalidArgumentError("home", self.home, f"expected {m.nq} finite joint values")
         object.__setattr__(self, "home", home)
-        if not isinstance(self.task, PointTask):
-            raise InvalidArgumentError("task", self.task, "expected a pkmtol.model.loop_tree.PointTask")
+        if not isinstance(self.task, TaskRows):
+            raise InvalidArgumentError(
+                "task", self.task, "expected task rows (pkmtol.model.loop_tree.PointTask)"
+            )
 
     # --- sizes and layout -----------------------------------------------------------------
 
@@ -360,7 +398,7 @@ def frame_named(model: pin.Model, name: str, what: str, source: str = "") -> int
 def make_loops(
     model: pin.Model, loops: Sequence[tuple[str, str, str, str]], source: str = ""
 ) -> tuple[LimbLoop, ...]:
-    """Loops ``(name, frame a, frame b, kind)`` by frame names, checked (ClosedLoopError naming the culprit)."""
+    """Loops ``(name, frame a, frame b, kind)`` by frame names, checked (ClosedLoopError on a bad one)."""
     out = []
     seen: set[str] = set()
     for name, fa, fb, kind in loops:

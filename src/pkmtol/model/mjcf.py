@@ -33,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 import pkmtol.values as values
-from pkmtol.exceptions import LostElementError, MJCFError, UnsupportedEqualityError
+from pkmtol.exceptions import ClosedLoopError, LostElementError, MJCFError, UnsupportedEqualityError
 from pkmtol.model.limb import Limb
 from pkmtol.model.loop_tree import LoopTree, frame_named, make_loops
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
@@ -385,7 +385,7 @@ def tree_from_mjcf(
     keyframe: str | None = None,
     home: Mapping[str, float] | None = None,
 ) -> LoopTree:
-    """An MJCF file as one tree: each ``<weld>`` a ``6d`` loop, each ``<connect>`` a ``3d`` one, wherever they close.
+    """An MJCF file as one tree: each ``<weld>`` a ``6d`` loop, each ``<connect>`` a ``3d`` one, anywhere.
 
     Args:
         path: The MJCF file.

@@ -1,4 +1,4 @@
-"""A limb mechanism as one tree with loop constraints: the limb formulation as a special case of the general one.
+"""A limb mechanism as one tree with loop constraints: the limb formulation as a special case.
 
 :func:`tree_from_mechanism` puts every limb's joints under one root
 (:func:`~pkmtol.model.constraints.constraint_models`, limb after limb, so ``q`` is

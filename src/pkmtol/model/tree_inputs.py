@@ -1,11 +1,11 @@
-"""Closed-loop models as one tree with loop constraints (:class:`~pkmtol.model.loop_tree.LoopTree`), from every format.
+"""Closed-loop models as one tree with loop constraints (:class:`~pkmtol.model.loop_tree.LoopTree`).
 
 * :func:`tree_from_urdf`: the example-parallel-robots convention whole: a URDF tree and its sidecar
   (``closed_loop`` pairs or ``closedloop<k>_A/_B`` frames, ``type`` ``6d``/``3d``, ``name_mot``,
   ``joint_name``/``joint_type`` ``FIXED``), loops between any two frames (between branches, below
   the platform, between rods); and the ``<constraint>`` elements proposed for urdfdom
   (:func:`urdf_constraints`).
-* :func:`~pkmtol.model.mjcf.tree_from_mjcf`: an MJCF file's ``<equality>`` welds and connects, wherever they close.
+* :func:`~pkmtol.model.mjcf.tree_from_mjcf`: an MJCF file's ``<equality>`` welds and connects.
 * :func:`tree_from_constraint_models`: a Pinocchio 4 stack, one ``pin.Model`` and its
   ``FrameAnchorConstraintModel`` / ``PointAnchorConstraintModel`` (or legacy ``RigidConstraintModel``).
 
@@ -67,8 +67,10 @@ def task_of(
 
 
 def _loop_name(pair: tuple[str, str], k: int) -> str:
-    """A loop's name: the frames' common stem (``closedloop<k>``), a ``closedloop<k>`` side, their
-    common prefix (``arm1_rod2`` of ``arm1_rod2_socket``/``arm1_rod2_end``), else ``loop<k>``.
+    """A loop's name from its frames' names.
+
+    Their common stem (``closedloop<k>``), a ``closedloop<k>`` side, their common prefix
+    (``arm1_rod2`` of ``arm1_rod2_socket``/``arm1_rod2_end``), else ``loop<k>``.
     """
     stems = {re.sub(r"_[AB]$", "", name) for name in pair}
     if len(stems) == 1 and pair[0] != pair[1]:
@@ -205,9 +207,11 @@ def _convention_pairs(model: pin.Model) -> list[tuple[str, str]]:
 
 
 def _add_frame(model: pin.Model, name: str, link: str, placement: pin.SE3, src: str) -> int:
-    """The frame at ``placement`` in link ``link``: the link's own frame for the identity, else a new
-    OP frame ``name`` (so that a constraint on the platform link itself is the platform frame, which
-    the platform attachment's error moves, as for a sidecar pair naming the link)."""
+    """The frame at ``placement`` in link ``link``: the link's own frame for the identity, else a new one.
+
+    The new frame is an OP frame ``name``. A constraint on the platform link itself is then the
+    platform frame, which the platform attachment's error moves, as for a sidecar pair naming it.
+    """
     body = frame_named(model, link, f"constraint frame '{name}'", src)
     if placement.isIdentity():
         return body
@@ -220,7 +224,11 @@ def _add_frame(model: pin.Model, name: str, link: str, placement: pin.SE3, src: 
 def urdf_constraints(
     root: ET.Element, src: str
 ) -> list[tuple[str, str, tuple[str, pin.SE3], tuple[str, pin.SE3]]]:
-    """The ``<constraint>`` elements of a URDF (the urdfdom proposal): ``(name, kind, (parent link, origin), (child link, origin))``.
+    """The ``<constraint>`` elements of a URDF (the urdfdom proposal).
+
+    Returns:
+        ``(name, kind, (parent link, origin), (child link, origin))`` per element.
+
 
     ``<constraint name=… type=…>`` holds ``<parent link=…/>``, ``<parent_origin xyz rpy/>``,
     ``<child link=…/>``, ``<child_origin xyz rpy/>``: the two frames that coincide when the loop is
@@ -237,8 +245,9 @@ def urdf_constraints(
             raise ClosedLoopError(
                 src,
                 name,
-                f"<constraint type='{ctype}'>: pkmtol takes {', '.join(sorted(CONSTRAINT_TYPES))} (a revolute or "
-                "universal cut: keep the joint in the tree and cut the loop at a fixed or ball point)",
+                f"<constraint type='{ctype}'>: pkmtol takes {', '.join(sorted(CONSTRAINT_TYPES))} "
+                "(a revolute or universal cut: keep the joint in the tree and cut the loop at a fixed "
+                "or ball point)",
             )
         sides = []
         for side in ("parent", "child"):
@@ -276,7 +285,7 @@ def tree_from_constraint_models(
     home: np.ndarray | Sequence[float] | None = None,
     name: str | None = None,
 ) -> LoopTree:
-    """A Pinocchio 4 stack as a :class:`LoopTree`: ``FrameAnchorConstraintModel`` → ``6d``, ``PointAnchorConstraintModel`` → ``3d``.
+    """A Pinocchio 4 stack as a :class:`LoopTree`: frame anchors are ``6d`` loops, point anchors ``3d``.
 
     Legacy ``RigidConstraintModel`` (``CONTACT_6D`` / ``CONTACT_3D``) are taken too. Each
     constraint's ``joint1``/``joint1_placement`` becomes frame a and ``joint2``/``joint2_placement``
