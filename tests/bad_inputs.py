@@ -222,6 +222,49 @@ L4_LAST = "  [0.0, 0.0, 0.0, 0.0],\n]\nend = [0.0, 90.0]\nlimits = [[-90.0, 90.0
 L4_U1 = '<joint name="limb4_u1" type="revolute">'
 MF, UE, IA, UK = E.MechanismFormatError, E.URDFError, E.InvalidArgumentError, E.UnknownKeyError
 
+
+def _epr_with_constraint(kind: str) -> Callable[[Path], Any]:
+    """robots/delta_epr's tree with one urdfdom ``<constraint>`` of type ``kind`` and no sidecar."""
+
+    def run(tmp: Path) -> Any:
+        from pkmtol.model.tree_inputs import tree_from_urdf
+
+        text = (REPO / "robots" / "delta_epr" / "robot.urdf").read_text(encoding="utf-8")
+        extra = (
+            f'  <constraint name="rod2_cut" type="{kind}"><parent link="arm1_rod2_socket"/>'
+            '<child link="arm1_rod2_end"/></constraint>\n</robot>'
+        )
+        (tmp / "robot.urdf").write_text(text.replace("</robot>", extra), encoding="utf-8")
+        return tree_from_urdf(tmp / "robot.urdf", task_frame="platform", actuated=["arm1_mot"])
+
+    return run
+
+
+def _tree_task_frame_missing(tmp: Path) -> Any:
+    from pkmtol.model.tree_inputs import tree_from_urdf
+
+    for name in ("robot.urdf", "robot.yaml"):
+        shutil.copy(REPO / "robots" / "delta_epr" / name, tmp / name)
+    return tree_from_urdf(tmp / "robot.urdf", task_frame="tcp")
+
+
+def _tree_unknown_constraint(tmp: Path) -> Any:
+    from pkmtol.model.tree_inputs import tree_from_constraint_models
+
+    cm = seed_mech().constraint_models()
+    return tree_from_constraint_models(cm.model, [pin.SE3.Identity()], ["limb1_p3"], "platform")
+
+
+def _tree_loop_on_one_body(tmp: Path) -> Any:
+    from pkmtol.model.limb import LimbLoop
+    from pkmtol.model.loop_tree import LoopTree, PointTask
+
+    cm = seed_mech().constraint_models()
+    f = cm.platform_frame
+    loop = LimbLoop("same_body", f, f, "6d", ("platform", "platform"))
+    return LoopTree("seed", cm.model, (loop,), (2,), f, PointTask(np.zeros(3)))
+
+
 CASES: list[Case] = [
     # ---- the robot folder and mechanism.toml as a file
     Case("Files", "a folder that does not exist", lambda t: load_mechanism(t / "nope"), MF, ("is not a folder",)),
@@ -354,6 +397,10 @@ CASES: list[Case] = [
     Case("Command line", "`new` into a folder that is not empty", new_in_taken, E.OutputError, ("taken", "not an empty folder")),
     Case("Command line", "`PKMTOL_JIT=maybe` in the environment", jit_switch_misspelt, IA, ("PKMTOL_JIT = 'maybe'", "set it to 0"), {"argument": "PKMTOL_JIT"}),
     Case("Command line", "`new` with a task space the robot cannot reach", cli("new", "tricept", "--task-radius", "1.5", "--out", "{tmp}/big", "--no-progress"), E.RobotCheckError, ("tricept", "117 of 147 task-space points are not reachable"), {"family": "tricept"}),
+    Case("One tree with loops", "a urdfdom `<constraint>` of type `revolute`", _epr_with_constraint("revolute"), E.ClosedLoopError, ("rod2_cut", "revolute", "cut the loop at a fixed"), {"culprit": "rod2_cut"}),
+    Case("One tree with loops", "a task frame that is not in the tree", _tree_task_frame_missing, E.ClosedLoopError, ("tcp", "no frame 'tcp'"), {"culprit": "tcp"}),
+    Case("One tree with loops", "a constraint model that is not a frame or point anchor", _tree_unknown_constraint, E.ClosedLoopError, ("constraint 1", "FrameAnchorConstraintModel"), {"culprit": "constraint 1"}),
+    Case("One tree with loops", "a loop whose two frames are on one body", _tree_loop_on_one_body, E.ClosedLoopError, ("same_body", "same body"), {"culprit": "same_body"}),
 ]  # fmt: skip
 
 

@@ -387,9 +387,10 @@ def frame_named(model: pin.Model, name: str, what: str, source: str = "") -> int
     """
     ids = [k for k, f in enumerate(model.frames) if f.name == name]
     if not ids:
-        frames = ", ".join(f.name for f in model.frames[1:])
+        links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+        frames = ", ".join(links[:12]) + (f", … ({len(links)} links)" if len(links) > 12 else "")
         raise ClosedLoopError(
-            source or model.name, name, f"{what}: no frame '{name}' in the tree (frames: {frames})"
+            source or model.name, name, f"{what}: no frame '{name}' in the tree (links: {frames})"
         )
     body = [k for k in ids if model.frames[k].type == pin.FrameType.BODY]
     return (body or ids)[0]
