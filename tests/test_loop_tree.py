@@ -161,18 +161,20 @@ def test_frame_maps_match_exact_reclosure():
 # --- the limb path as a special case -------------------------------------------------------------
 
 
+@pytest.mark.parametrize("general", [False, True], ids=["serial-limbs-direct", "every-limb-split"])
 @pytest.mark.parametrize("robot", ROBOTS)
-def test_general_path_gives_the_limb_paths_maps_classes_and_allocation(robot):
+def test_general_path_gives_the_limb_paths_maps_classes_and_allocation(robot, general):
     """A limb mechanism as one tree (tree_from_mechanism): the same poses (1e-12), twist maps, Eq. 25
     corrections, uncompensated maps, J, J_total and actuation maps (1e-10), classes and FOSM
-    tolerances (relative 1e-10) as the limb path, with its default parameter set."""
+    tolerances (relative 1e-10) as the limb path, with its default parameter set; serial limbs by
+    their joints' columns, and (``general``) every limb through its loop system."""
     mech = load_mechanism(ROOT / "robots" / robot)
     pset = parameter_set(mech, default_set(mech))
     tree, raw = tree_from_mechanism(mech)
     params = from_limb_set(raw, pset)
     grid = mech.task_space.grid()
     a = sweep(mech, pset, grid, ClosedChain(mech))
-    b = tree_sweep(tree, params, grid)
+    b = tree_sweep(tree, params, grid, general=general)
     assert max(np.abs(x.q_all - y.q_all).max() for x, y in zip(a.poses, b.poses, strict=True)) < 1e-12
     for field in ("twist_map", "correction", "uncompensated_map", "J", "J_total", "actuation_map"):
         worst = max(

@@ -125,7 +125,11 @@ def frame_maps(tree: LoopTree, q: np.ndarray, frame: int) -> FrameMaps:
 
 
 def separate_tree(
-    tree: LoopTree, params: TreeParameters, sols: Solutions, batch: TreeBatch | None = None
+    tree: LoopTree,
+    params: TreeParameters,
+    sols: Solutions,
+    batch: TreeBatch | None = None,
+    general: bool = False,
 ) -> list[Separation | KinematicsError]:
     """The separation (:class:`~pkmtol.error_model.separation.Separation`) at every solved pose.
 
@@ -134,6 +138,8 @@ def separate_tree(
         params: The parameter set.
         sols: Solved poses (:meth:`TreeBatch.inverse`).
         batch: The solver that produced them (its tables are reused).
+        general: Split every limb's loop system, serial limbs included (the same results to
+            round-off; the reduction test); default: serial limbs take their joints' columns.
 
     Returns:
         Per problem: its separation, or its error (the solver's, a :class:`SingularPoseError` of W,
@@ -150,7 +156,7 @@ def separate_tree(
     idx = np.array([k for k, e in enumerate(sols.errors) if e is None], dtype=int)
     if idx.size:
         batch = batch or TreeBatch(tree)
-        fields = limb_fields(tree, params, forward(batch.tables, sols.q[idx]))
+        fields = limb_fields(tree, params, forward(batch.tables, sols.q[idx]), general)
         for pos, k in enumerate(idx):
             f = fields[pos]
             out[int(k)] = f if isinstance(f, KinematicsError) else Separation(pose=sols.pose(int(k)), **f)
@@ -163,6 +169,7 @@ def tree_sweep(
     points_m: np.ndarray,
     batch: TreeBatch | None = None,
     guesses: np.ndarray | None = None,
+    general: bool = False,
 ) -> Sweep:
     """Inverse kinematics at every point and the separation there (a :class:`Sweep`).
 
@@ -177,7 +184,7 @@ def tree_sweep(
         sols = continuation(batch, points, batch.chain.home())
     else:
         sols = batch.inverse(points, guesses)
-    seps = separate_tree(tree, params, sols, batch)
+    seps = separate_tree(tree, params, sols, batch, general)
     failed = next((s for s in seps if not isinstance(s, Separation)), None)
     if failed is not None:
         raise failed

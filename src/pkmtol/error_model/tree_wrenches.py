@@ -51,6 +51,7 @@ class _Plan:
     ca: np.ndarray
     cb: np.ndarray
     ref: np.ndarray | None
+    simple: np.ndarray | None = None
 
 
 @lru_cache(maxsize=64)
@@ -100,7 +101,36 @@ def _plan(tree: LoopTree, limb: Limbs) -> _Plan:
         ref[:nj] = -sup_p[cols].astype(float)
         ref[nj : nj + 6] = 1.0
         ref[nj + 6 :] = -mov_p[rc].astype(float)
-    return _Plan(np.array(cols, dtype=int), rc, six, three, ca, cb, ref)
+    return _Plan(np.array(cols, dtype=int), rc, six, three, ca, cb, ref, _simple(nj, six, three, ca, cb, ref))
+
+
+def _simple(
+    nj: int,
+    six: tuple[int, ...],
+    three: tuple[int, ...],
+    ca: np.ndarray,
+    cb: np.ndarray,
+    ref: np.ndarray | None,
+) -> np.ndarray | None:
+    """The coefficients ``c`` with ``τ = G c`` when the limb is a serial chain to the platform, else None.
+
+    A limb that carries the platform and has no loop (``τ = T_P dq + E_P δ``), or one closed on the
+    platform by a single ``6d`` loop with one side on the platform body only (``τ`` = its other
+    side's motion, relative errors): its motion space is then its joints' columns and its error
+    columns a difference of frame motions, with no loop system to split (the limb path's serial limb).
+    """
+    if ref is not None and not six and not three:
+        return ref * np.r_[-np.ones(nj), np.zeros(6), -np.ones(len(ref) - nj - 6)]
+    if ref is not None or len(six) != 1 or three:
+        return None
+    a, b = ca[0], cb[0]
+    for plat, limb in ((a, b), (b, a)):
+        if np.all(plat[nj : nj + 6] == 1.0) and not np.any(plat[:nj]) and not np.any(limb[nj : nj + 6]):
+            out = limb.copy()
+            out[nj + 6 :] = limb[nj + 6 :] - plat[nj + 6 :]
+            out[nj : nj + 6] = 0.0
+            return out
+    return None
 
 
 def _cross(p: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -228,19 +258,35 @@ class _Split:
         return null[pos], pinv[pos], left[pos]
 
 
-def limb_fields(tree: LoopTree, params: TreeParameters, poses: TreePoses) -> list[dict | KinematicsError]:
-    """The :class:`~pkmtol.error_model.separation.Separation` fields (a dict) or the error of each pose."""
+def limb_fields(
+    tree: LoopTree, params: TreeParameters, poses: TreePoses, general: bool = False
+) -> list[dict | KinematicsError]:
+    """The :class:`~pkmtol.error_model.separation.Separation` fields (a dict) or the error of each pose.
+
+    ``general``: split every limb's loop system, serial limbs included (the reduction test);
+    default: a serial limb (:func:`_simple`) takes its joints' columns directly.
+    """
     raw = raw_world(tree, poses)
+    b = len(raw)
     limbs = [lb for lb in tree.limbs if lb.reaches_base]
-    systems = [_limb_system(tree, lb, poses, raw) for lb in limbs]
-    splits = [_Split(r, LOOP_RANK_TOLERANCE) for r, _, _ in systems]
-    key = np.stack([sp.ranks for sp in splits], axis=1)
-    out: list[dict | KinematicsError | None] = [None] * len(raw)
+    simple = {
+        li: _simple_part(tree, li, lb, poses, raw)
+        for li, lb in enumerate(limbs)
+        if _plan(tree, lb).simple is not None
+    }
+    systems = {li: _limb_system(tree, lb, poses, raw) for li, lb in enumerate(limbs) if li not in simple}
+    splits = {li: _Split(r, LOOP_RANK_TOLERANCE) for li, (r, _, _) in systems.items()}
+    key = np.stack(
+        [splits[li].ranks if li in splits else np.zeros(b, dtype=int) for li in range(len(limbs))], axis=1
+    )
+    out: list[dict | KinematicsError | None] = [None] * b
     for k_r in np.unique(key, axis=0):
         at = np.flatnonzero((key == k_r).all(axis=1))
         parts = [
-            _limb_part(tree, li, lb, d[at], rc, sp.at(at), poses, at)
-            for li, (lb, (_, d, rc), sp) in enumerate(zip(limbs, systems, splits, strict=True))
+            _take_rows(simple[li], at)
+            if li in simple
+            else _limb_part(tree, li, lb, systems[li][1][at], systems[li][2], splits[li].at(at), poses, at)
+            for li, lb in enumerate(limbs)
         ]
         key_s = np.stack([p["split_s"].ranks for p in parts], axis=1)
         for k_s in np.unique(key_s, axis=0):
@@ -249,6 +295,30 @@ def limb_fields(tree: LoopTree, params: TreeParameters, poses: TreePoses) -> lis
             for pos, f in zip(at[sub], fields, strict=True):
                 out[int(pos)] = f
     return [f for f in out if f is not None]
+
+
+def _simple_part(tree: LoopTree, li: int, limb: Limbs, poses: TreePoses, raw: np.ndarray) -> dict:
+    """A serial limb (:func:`_simple`) at every pose: ``S = K' T_L``, ``E' = K' E_L``, no loop split."""
+    plan = _plan(tree, limb)
+    assert plan.simple is not None
+    nj = len(plan.joints)
+    c = plan.simple
+    to_k = _k_prime(poses.frame(tree, tree.platform_frame)[:, :3, 3])
+    s = to_k @ (poses.columns[:, :, plan.joints] * c[:nj])
+    e = to_k @ (raw[:, :, plan.rc] * c[nj + 6 :])
+    b = len(raw)
+    act = [limb.joints.index(a) for a in tree.actuated if a in limb.joints]
+    return {
+        "limb": li,
+        "limb_obj": limb,
+        "act": act,
+        "null": np.broadcast_to(np.eye(nj), (b, nj, nj)),  # the null motions: each joint alone
+        "s": s,
+        "e": e,
+        "rc": plan.rc,
+        "inner": np.zeros((b, 0, len(plan.rc))),
+        "split_s": _Split(np.swapaxes(s, 1, 2), RANK_TOLERANCE),
+    }
 
 
 def _limb_part(
@@ -300,6 +370,15 @@ def _k_prime(p: np.ndarray) -> np.ndarray:
     out[:, 1, 3], out[:, 1, 5] = -z, x
     out[:, 2, 3], out[:, 2, 4] = y, -x
     return out
+
+
+def _take_rows(part: dict, at: np.ndarray) -> dict:
+    """A part at poses ``at``, its motion-space split restricted to them."""
+    if len(at) == len(part["s"]):
+        return part
+    p = {k: (v[at] if isinstance(v, np.ndarray) and v.ndim >= 2 else v) for k, v in part.items()}
+    p["split_s"] = _Split(np.swapaxes(p["s"], 1, 2), RANK_TOLERANCE)
+    return p
 
 
 def _take(part: dict, sub: np.ndarray) -> dict:
