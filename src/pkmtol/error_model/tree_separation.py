@@ -37,10 +37,7 @@ import numpy as np
 from pkmtol.error_model.separation import Separation
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.tree_parameters import TreeParameters
-from pkmtol.error_model.tree_wrenches import (
-    LOOP_RANK_TOLERANCE,  # noqa: E402
-    limb_fields,
-)
+from pkmtol.error_model.tree_wrenches import LOOP_RANK_TOLERANCE, limb_fields
 from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError
 from pkmtol.kinematics.continuation import continuation
 from pkmtol.kinematics.solutions import Solutions
