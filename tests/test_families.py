@@ -42,6 +42,7 @@ DOCUMENTED = {
 OTHER_GENERATORS = {
     "delta": "scripts/delta_urdf.py (URDF trees and mechanism.toml; --check in tests/test_loops.py)",
     "fivebar": "its mechanism.toml's D–H tables through scripts/dh_to_urdf.py (tests/test_planar.py)",
+    "delta_epr": "scripts/limbs_to_epr.py from robots/delta (--check in tests/test_tree_inputs.py)",
 }
 
 

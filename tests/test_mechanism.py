@@ -66,9 +66,14 @@ def test_robot_loads_with_pinocchio(robot):
 def test_robot_limbs_load_with_yourdfpy_and_agree_with_pinocchio(robot):
     mech = load_mechanism(robot)
     bases = set()
+    tree_home = {n: float(v) for lb in mech.limbs for n, v in zip(lb.joint_names, lb.home, strict=True)}
     for limb in mech.limbs:
         urdf = yourdfpy.URDF.load(str(limb.urdf_path))
         bases.add(urdf.base_link)
+        if len(urdf.actuated_joint_names) > limb.nq:  # a limb cut from one URDF tree (docs/closed-loop.md)
+            assert set(limb.joint_names) <= set(urdf.actuated_joint_names)
+            _same_tree_kinematics(urdf, limb, tree_home)
+            continue
         assert tuple(urdf.actuated_joint_names) == limb.joint_names
         for k, name in enumerate(limb.joint_names):
             joint = urdf.joint_map[name]
@@ -86,6 +91,24 @@ def test_robot_limbs_load_with_yourdfpy_and_agree_with_pinocchio(robot):
             atol=1e-12,
         )
     assert len(bases) == 1, f"limbs have different root links: {bases}"
+
+
+def _same_tree_kinematics(urdf, limb, tree_home) -> None:
+    """A limb cut from a URDF tree: its joints' types, limits and frames at home are the tree's."""
+    for k, name in enumerate(limb.joint_names):
+        joint = urdf.joint_map[name]
+        assert joint.type == ("revolute" if limb.joint_kinds[k] == "R" else "prismatic")
+        assert joint.limit.lower == pytest.approx(limb.model.lowerPositionLimit[k], abs=1e-12)
+        assert joint.limit.upper == pytest.approx(limb.model.upperPositionLimit[k], abs=1e-12)
+    urdf.update_cfg([tree_home.get(n, 0.0) for n in urdf.actuated_joint_names])
+    data = limb.model.createData()
+    pin.forwardKinematics(limb.model, data, limb.home)
+    for j, name in enumerate(limb.joint_names, 1):
+        np.testing.assert_allclose(
+            urdf.get_transform(urdf.joint_map[name].child, urdf.base_link),
+            data.oMi[j].homogeneous,
+            atol=1e-12,
+        )
 
 
 def test_seed_robot_description():

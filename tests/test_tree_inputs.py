@@ -282,3 +282,14 @@ def test_delta_epr_allocates_as_the_delta():
     """robots/delta_epr and robots/delta allocate alike: classes, toleranced errors, worst pose,
     tolerances (and the traditional method's) and the linear verification, to 1e-9."""
     assert_same_allocation(load_mechanism(ROOT / "robots" / "delta"), load_mechanism(EPR))
+
+
+def test_delta_epr_is_what_its_script_writes():
+    """robots/delta_epr is scripts/limbs_to_epr.py's output from robots/delta (kept in step)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("limbs_to_epr", ROOT / "scripts" / "limbs_to_epr.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main([str(ROOT / "robots" / "delta"), str(EPR), "--check"]) == 0
