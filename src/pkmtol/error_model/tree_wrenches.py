@@ -30,7 +30,7 @@ from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError, S
 from pkmtol.kinematics import se3_batch
 from pkmtol.kinematics.stacked_solve import condition_bound
 from pkmtol.kinematics.tree_frames import TreePoses, adjoint_inverse, raw_world
-from pkmtol.model.loop_tree import Limbs, LoopTree
+from pkmtol.model.loop_tree import LoopTree, TreeLimb
 
 #: Relative singular-value threshold of the limbs' loop systems.
 LOOP_RANK_TOLERANCE = 1e-9
@@ -55,7 +55,7 @@ class _Plan:
 
 
 @lru_cache(maxsize=64)
-def _plan(tree: LoopTree, limb: Limbs) -> _Plan:
+def _plan(tree: LoopTree, limb: TreeLimb) -> _Plan:
     pf = tree.platform_frame
     sup_p, mov_p = tree.support(pf), tree.moved_by(pf)
     pjoint = int(tree.model.frames[pf].parentJoint) - 1
@@ -141,7 +141,7 @@ def _cross(p: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _limb_system(
-    tree: LoopTree, limb: Limbs, poses: TreePoses, raw: np.ndarray
+    tree: LoopTree, limb: TreeLimb, poses: TreePoses, raw: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``R_L`` (b, rows, nJ + 6), ``D_L`` (b, rows, k) and the k raw columns it has.
 
@@ -297,7 +297,7 @@ def limb_fields(
     return [f for f in out if f is not None]
 
 
-def _simple_part(tree: LoopTree, li: int, limb: Limbs, poses: TreePoses, raw: np.ndarray) -> dict:
+def _simple_part(tree: LoopTree, li: int, limb: TreeLimb, poses: TreePoses, raw: np.ndarray) -> dict:
     """A serial limb (:func:`_simple`) at every pose: ``S = K' T_L``, ``E' = K' E_L``, no loop split."""
     plan = _plan(tree, limb)
     assert plan.simple is not None
@@ -324,7 +324,7 @@ def _simple_part(tree: LoopTree, li: int, limb: Limbs, poses: TreePoses, raw: np
 def _limb_part(
     tree: LoopTree,
     li: int,
-    limb: Limbs,
+    limb: TreeLimb,
     d: np.ndarray,
     rc: np.ndarray,
     split: tuple[np.ndarray, np.ndarray, np.ndarray],

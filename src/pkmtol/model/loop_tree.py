@@ -308,7 +308,7 @@ class LoopTree:
         return sup, mov
 
     @cached_property
-    def limbs(self) -> tuple[Limbs, ...]:
+    def limbs(self) -> tuple[TreeLimb, ...]:
         """The mechanism's limbs: the connected parts once the base and the platform body are removed.
 
         Bodies are Pinocchio's joints (0 the base); a joint joins its parent body and its own, a
@@ -320,7 +320,7 @@ class LoopTree:
 
 
 @dataclass(frozen=True)
-class Limbs:
+class TreeLimb:
     """One limb of a :class:`LoopTree` (a connected part of the mechanism between base and platform).
 
     Attributes:
@@ -336,7 +336,7 @@ class Limbs:
     reaches_base: bool
 
 
-def _limbs(tree: LoopTree) -> tuple[Limbs, ...]:
+def _limbs(tree: LoopTree) -> tuple[TreeLimb, ...]:
     m = tree.model
     pbody = int(m.frames[tree.platform_frame].parentJoint)
     body_of = [int(f.parentJoint) for f in m.frames]
@@ -348,7 +348,7 @@ def _limbs(tree: LoopTree) -> tuple[Limbs, ...]:
             bodies = {j + 1 for j in g} - {pbody}
             lps = tuple(k for k, (a, b) in enumerate(loop_edges) if a in bodies or b in bodies)
             reaches = any(int(m.parents[j + 1]) == 0 for j in g) or any(0 in loop_edges[k] for k in lps)
-            out.append(Limbs(tuple(sorted(g)), lps, bool(path & set(g)), reaches))
+            out.append(TreeLimb(tuple(sorted(g)), lps, bool(path & set(g)), reaches))
         return tuple(out)
     parent = list(range(m.njoints))
 
@@ -375,7 +375,7 @@ def _limbs(tree: LoopTree) -> tuple[Limbs, ...]:
     out = []
     for entry in groups.values():
         js = tuple(sorted(entry["joint"]))
-        out.append(Limbs(js, tuple(sorted(entry["loop"])), bool(path & set(js)), bool(entry["base"])))
+        out.append(TreeLimb(js, tuple(sorted(entry["loop"])), bool(path & set(js)), bool(entry["base"])))
     out.sort(key=lambda limb: (not limb.holds_platform, min(limb.joints, default=10**9)))
     return tuple(out)
 
