@@ -293,3 +293,23 @@ def test_delta_epr_is_what_its_script_writes():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     assert module.main([str(ROOT / "robots" / "delta"), str(EPR), "--check"]) == 0
+
+
+def test_legacy_rigid_constraint_models_read_as_the_anchors():
+    """The Delta's stack as legacy RigidConstraintModel (CONTACT_6D / CONTACT_3D): the same loops and poses."""
+    mech = load_mechanism(ROOT / "robots" / "delta")
+    cm = mech.constraint_models()
+    actuated = [cm.model.names[1 + a] for a in cm.actuated]
+    platform = cm.model.frames[cm.platform_frame].name
+    home = np.concatenate([lb.home for lb in mech.limbs])
+    a = tree_from_constraint_models(
+        cm.model, cm.constraints, actuated, platform, mech.reference_point_m, home=home
+    )
+    b = tree_from_constraint_models(
+        cm.model, cm.rigid_constraints(), actuated, platform, mech.reference_point_m, home=home
+    )
+    assert [lp.kind for lp in b.loops] == [lp.kind for lp in a.loops] == ["6d", "6d", "3d", "3d", "3d"]
+    target = mech.task_space.grid()[7][None]
+    qa = TreeBatch(a).inverse(target, a.home[None]).q
+    qb = TreeBatch(b).inverse(target, b.home[None]).q
+    assert np.abs(qa - qb).max() < 1e-12
