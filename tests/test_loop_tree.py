@@ -353,3 +353,30 @@ def test_classes_by_exact_single_parameter_compensation(trees, name):
             assert max(ratios) <= 1e-3, params.names[i]
         else:
             assert max(ratios) > 1e-2, params.names[i]
+
+
+# --- failures name their culprit -----------------------------------------------------------------
+
+
+def test_tree_failures_are_named():
+    """An unreachable target names the loop with the largest gap; a loop that cannot close at home is a
+    LoopMismatchError naming it; a frame the actuators do not hold is a MobilityError."""
+    from pkmtol.exceptions import LoopMismatchError, MobilityError, UnreachableTargetError
+
+    tree = digit_tree()
+    batch = TreeBatch(tree)
+    sols = batch.inverse(np.array([[0.1, 0.0, -2.0]]), batch.chain.home()[None])  # 2 m below the hip
+    assert isinstance(sols.errors[0], UnreachableTargetError)
+    assert "largest gap is at loop" in str(sols.errors[0])
+    broken = dataclasses.replace(tree, home=np.full(tree.nq, 0.0))
+    model = pin.Model(tree.model)
+    socket = tree.loops[0].frame_a
+    f = model.frames[socket]
+    f.placement = pin.SE3(np.eye(3), np.array([2.0, 0.0, 0.0])) * f.placement  # 2 m off: no closure
+    model.frames[socket] = f
+    with pytest.raises(LoopMismatchError, match="loop1"):
+        TreeBatch(dataclasses.replace(broken, model=model)).chain.home()
+    passive = dataclasses.replace(tree, actuated=tree.actuated[:2])  # the knee motor left free
+    q = batch.chain.home()[None]
+    with pytest.raises(MobilityError, match="toe"):
+        frame_maps(passive, q, passive.task_frame)
