@@ -296,7 +296,7 @@ def test_delta_epr_is_what_its_script_writes():
 
 
 def test_legacy_rigid_constraint_models_read_as_the_anchors():
-    """The Delta's stack as legacy RigidConstraintModel (CONTACT_6D / CONTACT_3D): the same loops and poses."""
+    """The Delta's stack as legacy RigidConstraintModel (CONTACT_6D / 3D): the same loops and poses."""
     mech = load_mechanism(ROOT / "robots" / "delta")
     cm = mech.constraint_models()
     actuated = [cm.model.names[1 + a] for a in cm.actuated]
