@@ -380,3 +380,35 @@ def test_tree_failures_are_named():
     q = batch.chain.home()[None]
     with pytest.raises(MobilityError, match="toe"):
         frame_maps(passive, q, passive.task_frame)
+
+
+def test_compiled_rows_are_the_numpy_rows(monkeypatch):
+    """The compiled loop and task rows (tree_kernels.tree_system) against the numpy ones, away from
+    closure, with a 6d loop turned near a half turn (Pinocchio's log6 takes it): 1e-12."""
+    tree = delta_epr_tree()
+    batch = TreeBatch(tree)
+    rng = np.random.default_rng(8)
+    q = batch.chain.home() + rng.normal(0.0, 0.3, (6, tree.nq))
+    targets = rng.normal(0.0, 0.5, (6, 3))
+    if tree_frames.tree_kernel() is None:
+        pytest.skip("numba is not installed: the numpy rows are the only ones")
+    res_c, jac_c, _ = batch.system(q, targets)
+    monkeypatch.setattr(tree_frames, "tree_kernel", lambda: None)
+    monkeypatch.setattr("pkmtol.kinematics.tree_chain.tree_kernel", lambda: None)
+    res_n, jac_n, _ = batch.system(q, targets)
+    assert np.abs(res_c - res_n).max() < 1e-12
+    assert np.abs(jac_c - jac_n).max() < 1e-12
+    # a half turn in loop closedloop1: frame b rotated by π - 1e-4 about z against frame a
+    model = pin.Model(tree.model)
+    fb = tree.loops[0].frame_b
+    f = model.frames[fb]
+    f.placement = f.placement * pin.SE3(pin.utils.rotate("z", np.pi - 1e-4), np.zeros(3))
+    model.frames[fb] = f
+    turned = TreeBatch(dataclasses.replace(tree, model=model))
+    q = batch.chain.home() + rng.normal(0.0, 1e-6, (6, tree.nq))  # closed: the loop's angle is π − 1e-4
+    res_n, jac_n, _ = turned.system(q, targets)
+    assert np.abs(res_n[:, 3:6]).max() > np.pi - 1e-3
+    monkeypatch.undo()
+    res_c, jac_c, _ = turned.system(q, targets)
+    assert np.abs(res_c - res_n).max() < 1e-12
+    assert np.abs(jac_c - jac_n).max() < 1e-10
