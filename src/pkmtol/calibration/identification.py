@@ -14,6 +14,7 @@ whose rate is the relative change of the Jacobian over the estimate (about ``|δ
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +36,8 @@ STEP_TOLERANCE = 1e-8
 #: A step that raises the cost by more than this (relative) is halved.
 COST_RISE = 1e-6
 MAX_ITERATIONS = 30
+#: The size of the exact solves' round-off in a value [m]: below it a rise of the cost is noise.
+SOLVE_NOISE = 1e-13
 #: Halvings of a step that raises the residual before giving up.
 MAX_HALVINGS = 8
 
@@ -239,11 +242,18 @@ def identify_with(
     origin, rot, q0 = machine_poses(nominal, maps.commands, maps.q)
     inst, pi0 = instrument.start(y, origin, rot, maps.station_index)
     st = maps.station_index
-    rows = inst.twist_rows(origin, rot, st, pi0)
-    H = np.einsum("kra,kan->krn", rows, maps.twist).reshape(N * r, -1)
-    Hp = inst.nuisance_rows(origin, rot, st, pi0).reshape(N * r, -1)
+
+    def rows_at(o: np.ndarray, R: np.ndarray, pi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rows = inst.twist_rows(o, R, st, pi)
+        H = np.einsum("kra,kan->krn", rows, maps.twist).reshape(N * r, -1)
+        return H, inst.nuisance_rows(o, R, st, pi).reshape(N * r, -1)
+
+    H, Hp = rows_at(origin, rot, pi0)
     w = value_weights(inst, N, ident.noise_m)
-    return _gauss_newton(mechanism, pset, ident, inst, st, maps.commands, q0, y, H, Hp, w, prior_sigma, pi0)
+    refresh = rows_at if inst.refresh_rows else None
+    return _gauss_newton(
+        mechanism, pset, ident, inst, st, maps.commands, q0, y, H, Hp, w, prior_sigma, pi0, refresh
+    )
 
 
 def _reshaped(out: Identification, shape: tuple[int, ...]) -> Identification:
@@ -279,8 +289,13 @@ def _gauss_newton(
     weights: np.ndarray,
     prior_sigma: np.ndarray | None,
     pi0: np.ndarray | None = None,
+    refresh: Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Identification:
-    """Gauss–Newton with the frozen Jacobian ``[W H_x, W H_π]`` (whitened); residuals (N, r) raw."""
+    """Gauss–Newton with the Jacobian ``[W H_x, W H_π]`` (whitened); residuals (N, r) raw.
+
+    The Jacobian is frozen at the start, or (``refresh``) the instrument's rows are re-evaluated
+    at every accepted iterate's platform poses and nuisance, times the nominal twist maps.
+    """
     n, q_n = len(pset), Hp.shape[1]
     if prior_sigma is None:
         method, cols, scale, names = (
@@ -299,10 +314,15 @@ def _gauss_newton(
                 f"got shape {prior.shape}"
             )
         prior_precision = ident.noise_m**2 / prior**2  # relative to the (whitened) measurement precision
-    J = np.concatenate([H[:, cols], Hp], axis=1) * weights[:, None]
     root = np.concatenate([np.sqrt(prior_precision), np.zeros(q_n)])
-    J_aug = np.concatenate([J, np.diag(root)[root > 0]], axis=0)
-    J_pinv = linalg.pinv(J_aug)
+
+    def system(H_: np.ndarray, Hp_: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        J = np.concatenate([H_[:, cols], Hp_], axis=1) * weights[:, None]
+        J_aug_ = np.concatenate([J, np.diag(root)[root > 0]], axis=0)
+        return J_aug_, linalg.pinv(J_aug_)
+
+    J_aug, J_pinv = system(H, Hp)
+    poses_now: list[tuple[np.ndarray, np.ndarray]] = []
     all_scale = np.concatenate([scale, np.asarray(inst.nuisance_scale, dtype=float)])
     pi_start = np.zeros(q_n) if pi0 is None else np.asarray(pi0, dtype=float)
 
@@ -310,12 +330,15 @@ def _gauss_newton(
         delta = np.zeros(n)
         delta[cols] = x[: cols.size]
         origin, rot, q_new = machine_poses(Machine(mechanism, pset, delta), commands, q0)
+        poses_now.append((origin, rot))
         model = inst.measure(origin, rot, stations, pi_start + x[cols.size :])
         res = inst.residual(measured, model)
         xm = x[: cols.size]
         cost = float(np.sum((res.reshape(-1) * weights) ** 2) + np.sum(prior_precision * xm**2))
         return res, q_new, cost
 
+    # the exact solves stop at a 1e-13 residual: costs closer than that to zero cannot be compared
+    floor = max(1e-28, measured.size * (SOLVE_NOISE * float(np.max(weights, initial=1.0))) ** 2)
     x = np.zeros(cols.size + q_n)
     resid, q, cost = evaluate(x, q_guess)
     before = resid.copy()
@@ -334,7 +357,7 @@ def _gauss_newton(
                 continue
             # the frozen Jacobian's fixed point is not exactly the cost's minimum (they differ at
             # second order): only a clear rise of the cost is a divergence
-            if new_cost <= cost * (1 + COST_RISE) + 1e-28:
+            if new_cost <= cost * (1 + COST_RISE) + floor:
                 accepted = True
                 break
             step = step / 2
@@ -351,6 +374,8 @@ def _gauss_newton(
         if np.max(np.abs(step) / all_scale) < STEP_TOLERANCE:
             converged = True
             break
+        if refresh is not None:
+            J_aug, J_pinv = system(*refresh(*poses_now[-1], pi_start + x[cols.size :]))
     estimate = np.zeros(n)
     estimate[cols] = x[: cols.size]
     cov = ident.noise_m**2 * linalg.pinvh(J_aug.T @ J_aug)

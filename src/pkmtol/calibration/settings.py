@@ -47,7 +47,7 @@ INSTRUMENT_DEFAULTS: dict[str, tuple[float, int]] = {
     "tracker-multi": (1e-5, 40),
     "tracker-6d": (1e-5, 40),
     "ballbar": (1e-6, 6),
-    "probe": (1e-6, 60),
+    "probe": (1e-6, 120),
 }
 #: Reflectors of ``tracker-multi`` when ``targets_m`` is not given: P and 0.1 m from it along the
 #: platform's x and y axes.

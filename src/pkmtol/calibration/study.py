@@ -486,7 +486,7 @@ def collect(ctx: StudyContext, outcomes: list[MachineOutcome]) -> StudyResult:
             machines=len(good),
         )
         diff = np.abs(exact.dlambda_m - linear.dlambda_m)
-        spread = ()
+        spread: tuple[tuple[float, float], ...] = ()
         if cc.plans:
             spread = tuple(
                 (

@@ -37,15 +37,20 @@ def task_geometry(mechanism: Mechanism) -> tuple[float, float, float, float, flo
     return float(c[0]), float(c[1]), r, float(g[:, 2].min()), float(g[:, 2].max())
 
 
-def default_centres(mechanism: Mechanism, heights: int) -> np.ndarray:
-    """Station centres (5·heights, 3) [m]: the task axis and 4 points at half the radius, per height."""
+def default_centres(mechanism: Mechanism, heights: int, ring: int = 4, radius: float = 0.5) -> np.ndarray:
+    """Station centres (heights·(1 + ring), 3) [m]: the task axis and ``ring`` points around it.
+
+    The ring is at ``radius`` times the task radius, evenly spaced; per height (1: mid-height;
+    else z_min to z_max).
+    """
     cx, cy, r, z0, z1 = task_geometry(mechanism)
     zs = [0.5 * (z0 + z1)] if heights == 1 else np.linspace(z0, z1, heights)
     out = []
     for z in zs:
         out.append((cx, cy, z))
-        for a in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
-            out.append((cx + 0.5 * r * np.cos(a), cy + 0.5 * r * np.sin(a), z))
+        for i in range(ring):
+            a = 2 * np.pi * i / ring
+            out.append((cx + radius * r * np.cos(a), cy + radius * r * np.sin(a), z))
     return np.array(out, dtype=float)
 
 
@@ -72,6 +77,6 @@ def instrument_for(settings: CalibrationSettings, mechanism: Mechanism) -> Instr
         return Ballbar(p, circles, length, settings.circle_points, settings.noise_m)
     centres = np.asarray(settings.stations_m, dtype=float).reshape(-1, 3)
     if not len(centres):
-        centres = default_centres(mechanism, 3)
+        centres = default_centres(mechanism, 3, ring=8, radius=0.9)
         centres[:, 2] = np.minimum(centres[:, 2], centres[:, 2].max() - settings.artifact_radius_m)
     return SphereProbe(p, centres, settings.artifact_radius_m, settings.approach_directions, settings.noise_m)

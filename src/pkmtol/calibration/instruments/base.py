@@ -62,6 +62,10 @@ class Instrument(ABC):
     nuisance_names: tuple[str, ...] = ()
     nuisance_units: tuple[str, ...] = ()
     nuisance_scale: np.ndarray
+    #: Re-evaluate :meth:`twist_rows` and :meth:`nuisance_rows` at every Gauss–Newton iterate (the
+    #: values are strongly curved in the platform pose: a distance to a centre a few cm away);
+    #: the machine's twist maps stay the nominal ones.
+    refresh_rows: bool = False
 
     @property
     def values_per_pose(self) -> int:

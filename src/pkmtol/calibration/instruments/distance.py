@@ -1,10 +1,11 @@
 """The distance from a platform point to a station's centre: the ballbar's and the sphere probe's model.
 
-Station ``s`` has a centre ``c_s + π_s`` in K: its nominal position and a 3-vector of nuisance
-parameters (the table ball of a ballbar set-up, the centre of a probed sphere), identified with the
-machine. The value at a pose is ``d = ‖o + R b − c_s − π_s‖`` for the platform point ``b``
-(platform frame; the tool point P). With ``u = (o + R b − c)/d``: per unit platform twist
-``dd = uᵀ [I, −[R b]×] $``, per unit nuisance of its own station ``dd = −uᵀ dπ_s``.
+Station ``s`` has a centre ``c_s + E_s π_s`` in K: its nominal position, moved along the station's
+``k`` nuisance axes ``E_s`` (3 × k, orthonormal columns) by its nuisance parameters ``π_s`` (a
+ballbar's table ball, in its circle's plane), identified with the machine. The value at a pose is
+``d = ‖o + R b − c_s − E_s π_s‖`` for the platform point ``b`` (platform frame; the tool point P).
+With ``u = (o + R b − c)/d``: per unit platform twist ``dd = uᵀ [I, −[R b]×] $``, per unit
+nuisance of its own station ``dd = −uᵀ E_s dπ_s``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ class StationDistance(Instrument):
         centres_m: Shape (S, 3): the stations' nominal centres in K [m].
         noise_m: σ per distance [m].
         centre_sigma_m: Expected size of each centre's offset from nominal [m] (scaling, draws).
-        label: Nuisance names' prefix (``ball``, ``sphere``).
+        label: Nuisance names' prefix (``ball``).
+        axes: Shape (S, k, 3): each station's nuisance axes (rows; default the x, y, z axes).
 
     Raises:
         InvalidRequestError: no station, or a centre that is not finite.
@@ -31,6 +33,7 @@ class StationDistance(Instrument):
 
     value_names = ("d",)
     value_units = ("m",)
+    refresh_rows = True
 
     def __init__(
         self,
@@ -39,6 +42,7 @@ class StationDistance(Instrument):
         noise_m: float,
         centre_sigma_m: float,
         label: str,
+        axes: np.ndarray | None = None,
     ) -> None:
         self.point_m = np.asarray(point_m, dtype=float).reshape(3)
         self.centres_m = np.asarray(centres_m, dtype=float).reshape(-1, 3)
@@ -49,9 +53,13 @@ class StationDistance(Instrument):
             )
         self.noise = np.array([float(noise_m)])
         S = len(self.centres_m)
-        self.nuisance_names = tuple(f"{label}{s}.{a}" for s in range(S) for a in "xyz")
-        self.nuisance_units = ("m",) * (3 * S)
-        self.nuisance_scale = np.full(3 * S, float(centre_sigma_m))
+        self.axes = np.tile(np.eye(3), (S, 1, 1)) if axes is None else np.asarray(axes, dtype=float)
+        k = self.axes.shape[1]
+        self.nuisance_names = tuple(
+            f"{label}{s}.{'xyz'[int(np.argmax(np.abs(e)))]}" for s in range(S) for e in self.axes[s]
+        )
+        self.nuisance_units = ("m",) * (k * S)
+        self.nuisance_scale = np.full(k * S, float(centre_sigma_m))
 
     def _offsets(self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray):
         st = np.asarray(stations, dtype=int)
@@ -60,7 +68,8 @@ class StationDistance(Instrument):
                 f"station {int(st.max())} of {self.name} data does not exist: {len(self.centres_m)} "
                 "station(s) are set up ([calibration] stations_m)"
             )
-        centres = self.centres_m + np.asarray(nuisance, dtype=float).reshape(-1, 3)
+        pi = np.asarray(nuisance, dtype=float).reshape(len(self.centres_m), -1)
+        centres = self.centres_m + np.einsum("sk,ska->sa", pi, self.axes)
         point = origin + np.einsum("kab,b->ka", rotation, self.point_m)
         return point - centres[st], st
 
@@ -82,10 +91,12 @@ class StationDistance(Instrument):
     def nuisance_rows(
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
     ) -> np.ndarray:
-        """``−uᵀ`` in the columns of each pose's station, (N, 1, 3·S)."""
+        """``−uᵀ E_s`` in the columns of each pose's station, (N, 1, k·S)."""
         r, st = self._offsets(origin, rotation, stations, nuisance)
         u = r / np.linalg.norm(r, axis=1)[:, None]
-        out = np.zeros((len(origin), 1, 3 * len(self.centres_m)))
-        for a in range(3):
-            out[np.arange(len(origin)), 0, 3 * st + a] = -u[:, a]
+        k = self.axes.shape[1]
+        out = np.zeros((len(origin), 1, k * len(self.centres_m)))
+        proj = -np.einsum("na,nka->nk", u, self.axes[st])
+        for a in range(k):
+            out[np.arange(len(origin)), 0, k * st + a] = proj[:, a]
         return out

@@ -61,6 +61,7 @@ class TrackerPoints(Instrument):
         self.nuisance_names = FRAME_NAMES if self.frame.identify else ()
         self.nuisance_units = FRAME_UNITS if self.frame.identify else ()
         self.nuisance_scale = np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3][: self.frame.count])
+        self.refresh_rows = self.frame.identify  # the rows turn with the registered frame
 
     def _points(self, origin: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         return origin[:, None, :] + np.einsum("kab,tb->kta", rotation, self.targets_m)

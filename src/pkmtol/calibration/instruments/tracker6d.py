@@ -48,6 +48,7 @@ class Tracker6D(Instrument):
         self.nuisance_names = FRAME_NAMES if self.frame.identify else ()
         self.nuisance_units = FRAME_UNITS if self.frame.identify else ()
         self.nuisance_scale = np.full(self.frame.count, 1e-3)
+        self.refresh_rows = self.frame.identify  # the rows turn with the registered frame
 
     def measure(
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
