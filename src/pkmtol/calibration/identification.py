@@ -93,15 +93,21 @@ class Identification:
         """Standard deviation of each estimated quantity [SI]."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
+    def _lengths(self, res: np.ndarray) -> np.ndarray:
+        if self.instrument is None or res.ndim != 2:
+            return res
+        mask = np.array([u == "m" for u in self.instrument.value_units])
+        return res[:, mask] if mask.any() else res
+
     @property
     def rms_before_m(self) -> float:
-        """RMS of the measured coordinates' residuals against the nominal model [m]."""
-        return float(np.sqrt(np.mean(self.residuals_before_m**2)))
+        """RMS of the measured lengths' residuals against the nominal model [m] (angles left out)."""
+        return float(np.sqrt(np.mean(self._lengths(self.residuals_before_m) ** 2)))
 
     @property
     def rms_after_m(self) -> float:
-        """RMS of the residuals at the estimate [m]."""
-        return float(np.sqrt(np.mean(self.residuals_m**2)))
+        """RMS of the lengths' residuals at the estimate [m]."""
+        return float(np.sqrt(np.mean(self._lengths(self.residuals_m) ** 2)))
 
 
 def model_positions(

@@ -27,6 +27,8 @@ from pkmtol.model.mechanism import Mechanism
 
 #: Pose counts of the p99-against-N curve.
 CURVE_POSES = (10, 15, 20, 30, 40, 60, 80, 100)
+#: The same for the ballbar, in circles.
+CURVE_CIRCLES = (2, 3, 4, 6, 8, 10, 15)
 
 
 def design_sigma(
@@ -141,8 +143,12 @@ def plan_report(
         rnd.append(_summary(f"random #{k + 1}", p, ho.maps, sigma, target_m, axis))
     points = []
     if curve:
-        for n in CURVE_POSES:
-            if n > len(pool) or 3 * n * plan.targets_m.shape[0] < plan.ident.rank:
+        inst = plan.measurement_model(mechanism)
+        groups = np.unique(pool.group_index).size
+        per_group = plan.poses / max(np.unique(plan.maps.group_index).size, 1)
+        for n in CURVE_CIRCLES if inst.name == "ballbar" else CURVE_POSES:
+            values = n * per_group * inst.values_per_pose
+            if n > groups or values < plan.ident.rank + inst.nuisance_count:
                 continue
             d = make_plan(mechanism, pset, classes, settings, pool, sigma, poses=n, selection="d-optimal")
             p99_d = _summary("d", d, ho.maps, sigma, target_m, axis).prediction.p99_m

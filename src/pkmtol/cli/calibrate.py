@@ -9,6 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.instrument_data import calibrate_instrument_data
+from pkmtol.calibration.instrument_files import read_instrument_measurements
+from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
@@ -32,6 +35,12 @@ from pkmtol.present.calibration_tables import (
     residuals_csv,
     study_json,
     study_text,
+)
+from pkmtol.present.instrument_tables import (
+    instrument_identified_csv,
+    instrument_json,
+    instrument_residuals_csv,
+    instrument_text,
 )
 from pkmtol.present.tables import check_output_folder
 
@@ -128,6 +137,41 @@ def _tolerances(
     ], f"FOSM tolerances at β = {res.design_beta:g} (quick allocation)"
 
 
+def _instrument_data(
+    mech: Mechanism,
+    pset: ParameterSet,
+    classes: list[str],
+    settings: CalibrationSettings,
+    args: argparse.Namespace,
+    out: Path,
+) -> list[tuple[Path, bytes]]:
+    """Identify from the data of an instrument other than a registered tracker; the files to write."""
+    inst = instrument_for(settings, mech)
+    stations = len(getattr(inst, "centres_m", [0]))
+    meas = read_instrument_measurements(
+        args.measurements, mech, inst, settings.targets(mech).shape[0], stations
+    )
+    sigma = None
+    if settings.prior:
+        tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
+        sigma = design_sigma(pset, classes, settings, tol)
+    cal = calibrate_instrument_data(mech, pset, classes, settings, meas, args.measurements, sigma)
+    files = [
+        (out / "identified.json", dumps(instrument_json(cal, pset.names)).encode()),
+        (out / "identified.csv", instrument_identified_csv(cal).encode()),
+        (out / "identified.md", ("# Identified parameters\n\n" + instrument_text(cal, True)).encode()),
+        (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
+    ]
+    try:
+        urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
+        toml = calibrated_toml(mech, pset, cal.result.estimate)
+        files += write_calibrated_folder(out / "calibrated", urdfs, toml)
+    except Exception as err:  # noqa: BLE001 - reported, the identification stands
+        print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
+    print(instrument_text(cal), end="")
+    return files
+
+
 def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
     for name, value, low in (
@@ -149,7 +193,12 @@ def _run(args: argparse.Namespace) -> int:
     classes = grid_classes(mech, pset)
     files: list[tuple[Path, bytes]] = []
     figures: dict[str, object] = {}
-    if args.measurements is not None:
+    registered = (
+        settings.instrument in ("tracker", "tracker-multi") and settings.tracker_frame == "registered"
+    )
+    if args.measurements is not None and not registered:
+        files += _instrument_data(mech, pset, classes, settings, args, out)
+    elif args.measurements is not None:
         meas = read_measurements(args.measurements, mech, settings.targets(mech).shape[0])
         sigma = None
         if settings.prior:
