@@ -203,3 +203,44 @@ class SphereProbe(Instrument):
         pts = (self.centres_m[:, None, :] + self.radius_m * self.directions[None, :, :]).reshape(-1, 3)
         stations = np.repeat(np.arange(S), D)
         return Candidates(points_m=pts, stations=stations, groups=np.arange(S * D))
+
+
+def trigger_commands(
+    machine: object,
+    probe: SphereProbe,
+    commands: np.ndarray,
+    q: np.ndarray,
+    stations: np.ndarray,
+    nuisance: np.ndarray,
+    actuation: np.ndarray,
+    iterations: int = 8,
+) -> np.ndarray:
+    """The readings at which a machine's probe triggers on the true artifact (simulated touches).
+
+    From the planned readings, each touch moves P along the sphere's normal until
+    ``‖P − A s_j‖ = R`` (Newton along the normal with the nominal command map ``C_k``:
+    ``Δu = −(d − R) C_k⁺ n``).
+
+    Args:
+        machine: The true machine (:class:`pkmtol.calibration.machine.Machine`).
+        probe: The probe and its artifact.
+        commands: Shape (N, f): planned readings.
+        q: Shape (N, Σ nq): joint guesses there.
+        stations: Shape (N,): the sphere of each touch.
+        nuisance: The artifact's true pose parameters (6,).
+        actuation: Shape (N, 3, f): P's motion per command change (``PoseMaps.position_actuation``).
+        iterations: Newton steps.
+
+    Returns:
+        Shape (N, f): the trigger readings.
+    """
+    u = np.array(commands, dtype=float)
+    pinv = np.linalg.pinv(actuation)  # (N, f, 3)
+    for _ in range(iterations):
+        sols = machine.forward_many(u, q)  # type: ignore[attr-defined]
+        r, _, _ = probe._offsets(sols.translation, sols.rotation, stations, nuisance)
+        d = np.linalg.norm(r, axis=1)
+        n = r / d[:, None]
+        u = u - (d - probe.radius_m)[:, None] * np.einsum("kfa,ka->kf", pinv, n)
+        q = sols.q
+    return u
