@@ -38,6 +38,13 @@ COST_RISE = 1e-6
 MAX_ITERATIONS = 30
 #: The size of the exact solves' round-off in a value [m]: below it a rise of the cost is noise.
 SOLVE_NOISE = 1e-13
+#: With nuisance parameters, also converged when every step is below this fraction of its estimate's
+#: own standard deviation (the weakest directions are known only to their noise, and a frozen
+#: machine Jacobian cannot settle them beyond it).
+STEP_OF_STD = 1e-3
+#: ... or when no step lowers the cost and the offered step would change the fitted values by less
+#: than this many σ in all: a cost change below 1 σ², far inside the spread √(2M) of the noise's χ².
+FIT_CHANGE = 1.0
 #: Halvings of a step that raises the residual before giving up.
 MAX_HALVINGS = 8
 
@@ -328,6 +335,9 @@ def _gauss_newton(
         return J_aug_, linalg.pinv(J_aug_)
 
     J_aug, J_pinv = system(H, Hp)
+    std_all = ident.noise_m * np.sqrt(np.clip(np.diag(linalg.pinvh(J_aug.T @ J_aug)), 0.0, None))
+    # steps below STEP_OF_STD of the noise of their estimate end the iteration (nuisance only)
+    settle = np.where(std_all > 0, STEP_OF_STD * std_all, 0.0) if q_n else np.zeros_like(std_all)
     poses_now: list[tuple[np.ndarray, np.ndarray]] = []
     all_scale = np.concatenate([scale, np.asarray(inst.nuisance_scale, dtype=float)])
     pi_start = np.zeros(q_n) if pi0 is None else np.asarray(pi0, dtype=float)
@@ -353,6 +363,7 @@ def _gauss_newton(
     for it in range(1, MAX_ITERATIONS + 1):
         rhs = np.concatenate([resid.reshape(-1) * weights, -(root * x)[root > 0]])
         step = J_pinv @ rhs
+        full_step = step
         accepted = False
         for _ in range(MAX_HALVINGS + 1):
             x_new = x + step
@@ -368,6 +379,10 @@ def _gauss_newton(
                 break
             step = step / 2
         if not accepted:
+            # at the optimum to the noise: the step the Jacobian offers would change the fitted
+            # values by less than FIT_CHANGE σ in all (nuisance instruments only)
+            if q_n and float(np.linalg.norm(J_aug @ full_step)) <= FIT_CHANGE * ident.noise_m:
+                converged = True
             if it == 1 and cost > 0:
                 raise IdentificationError(
                     f"Gauss–Newton found no step that lowers the residual (RMS "
@@ -377,7 +392,7 @@ def _gauss_newton(
                 )
             break
         x, q, resid, cost = x_new, q_new, resid_new, new_cost
-        if np.max(np.abs(step) / all_scale) < STEP_TOLERANCE:
+        if np.max(np.abs(step) / all_scale) < STEP_TOLERANCE or (q_n and np.all(np.abs(step) <= settle)):
             converged = True
             break
         if refresh is not None:

@@ -122,17 +122,19 @@ class StudyCase:
         controller: ``compensatable``, ``full`` or explicit parameter names.
         selection: ``d-optimal`` or ``random``.
         poses: N.
+        unit: What N counts (``poses``; ``circles`` for the ballbar).
     """
 
     controller: str | tuple[str, ...]
     selection: str
     poses: int
+    unit: str = "poses"
 
     @property
     def label(self) -> str:
-        """``<controller>, <N> <selection> poses``."""
+        """``<controller>, <N> <selection> poses`` (or circles)."""
         ctrl = self.controller if isinstance(self.controller, str) else f"explicit ({len(self.controller)})"
-        return f"{ctrl}, {self.poses} {self.selection} poses"
+        return f"{ctrl}, {self.poses} {self.selection} {self.unit}"
 
 
 @dataclass(frozen=True, eq=False)

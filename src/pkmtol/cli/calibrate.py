@@ -67,6 +67,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--simulate", action="store_true", help="run the exact-kinematics calibration study")
     p.add_argument("--machines", type=int, default=100, help="machines of the study (default 100)")
     p.add_argument("--holdout", type=int, default=200, help="held-out random poses (default 200)")
+    p.add_argument(
+        "--plan-per-machine",
+        action="store_true",
+        help="--simulate: calibrate every machine by its own plan (a new random plan, or the D-optimal "
+        "plan of its own half of the candidate pool) and report the plan-to-plan spread",
+    )
     p.add_argument("--measurements", type=Path, default=None, help="identify from this measurement CSV")
     p.add_argument(
         "--tolerances",
@@ -183,6 +189,8 @@ def _run(args: argparse.Namespace) -> int:
             raise InvalidRequestError(f"{name} must be ≥ {low}, got {value}")
     if args.simulate and args.measurements is not None:
         raise InvalidRequestError("give either --simulate or --measurements, not both")
+    if args.plan_per_machine and not args.simulate:
+        raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = parameter_set(mech, args.pset or default_set(mech))
@@ -259,6 +267,7 @@ def _run(args: argparse.Namespace) -> int:
                 args.machines,
                 args.holdout,
                 executor=executor,
+                plans_per_machine=args.plan_per_machine,
             )
             study = rep.study
             text += "\n" + study_text(rep)
