@@ -45,6 +45,9 @@ STEP_OF_STD = 1e-3
 #: ... or when no step lowers the cost and the offered step would change the fitted values by less
 #: than this many σ in all: a cost change below 1 σ², far inside the spread √(2M) of the noise's χ².
 FIT_CHANGE = 1.0
+#: Levenberg–Marquardt damping tried (relative to the largest singular value squared) when no
+#: halving of the Gauss–Newton step lowers the cost, with nuisance parameters.
+DAMPING = (1e-8, 1e-6, 1e-4, 1e-2)
 #: Halvings of a step that raises the residual before giving up.
 MAX_HALVINGS = 8
 
@@ -378,6 +381,20 @@ def _gauss_newton(
                 accepted = True
                 break
             step = step / 2
+        if not accepted and q_n:
+            # instruments with nuisance parameters: Levenberg–Marquardt damping of the weak
+            # directions, where the nominal machine Jacobian is least exact
+            u_, s_, vt_ = np.linalg.svd(J_aug, full_matrices=False)
+            proj = u_.T @ rhs
+            for lam in DAMPING:
+                step = vt_.T @ (s_ / (s_**2 + lam * s_[0] ** 2) * proj)
+                try:
+                    resid_new, q_new, new_cost = evaluate(x + step, q)
+                except IdentificationError:
+                    continue
+                if new_cost <= cost * (1 + COST_RISE) + floor:
+                    accepted, x_new = True, x + step
+                    break
         if not accepted:
             # at the optimum to the noise: the step the Jacobian offers would change the fitted
             # values by less than FIT_CHANGE σ in all (nuisance instruments only)
