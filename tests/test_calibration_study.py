@@ -1,4 +1,4 @@
-"""The study's honest figures: machine-level intervals, machines that do not converge, linear validity, plans per machine."""
+"""The study's honest figures: machine-level intervals, unconverged machines, linear validity, plans per machine."""
 
 from __future__ import annotations
 
