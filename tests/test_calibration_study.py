@@ -1,4 +1,4 @@
-"""The study's honest figures: machine-level intervals, unconverged machines, linear validity, plans per machine."""
+"""The study's honest figures: machine-level intervals, unconverged machines, linear validity, plans."""
 
 from __future__ import annotations
 
