@@ -193,3 +193,15 @@ def test_a_folder_given_as_measurements_is_named(tmp_path, capsys):
     args = ["calibrate", str(SEED), "--measurements", str(tmp_path), "--out", str(tmp_path / "o")]
     assert main(args + INSTRUMENTS["ballbar"]) == 2
     assert "is a folder" in capsys.readouterr().err
+
+
+def test_ballbar_plan_names_the_circle_of_every_reading(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    args = ["calibrate", str(SEED), "--instrument", "ballbar", "--poses", "3", "--plan", str(plan)]
+    assert main(args + ["--out", str(tmp_path / "o"), "--no-figures", "--random-sets", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "instrument ballbar" in text and "on 3 circles" in text
+    rows = plan.read_text().splitlines()
+    assert rows[0].startswith("pose,station,limb1.limb1_p3 [mm]")
+    stations = {r.split(",")[1] for r in rows[1:]}
+    assert len(stations) == 3 and len(rows) - 1 == 3 * 36

@@ -94,6 +94,27 @@ def instrument_csv(
     return buf.getvalue()
 
 
+def instrument_plan_csv(
+    mechanism: Mechanism, commands: np.ndarray, points_m: np.ndarray, stations: np.ndarray
+) -> str:
+    """A ballbar's or a probe's plan as CSV: the station (circle, sphere), the commands, the nominal P."""
+    acts = actuator_columns(mechanism)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(
+        ["pose", "station"]
+        + [f"{c} [{'mm' if k == 'P' else 'deg'}]" for c, k in acts]
+        + [f"P_{a} [mm]" for a in "xyz"]
+    )
+    for i, (u, p) in enumerate(zip(commands, points_m, strict=True)):
+        vals = [
+            f"{v * (1e3 if k == 'P' else 180.0 / math.pi) + 0.0:.6f}"
+            for v, (_, k) in zip(u, acts, strict=True)
+        ]
+        w.writerow([i, int(stations[i])] + vals + [f"{1e3 * x + 0.0:.4f}" for x in p])
+    return buf.getvalue()
+
+
 def _fmt(v: float) -> str:
     return repr(float(v) + 0.0)
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
-from pkmtol.calibration.instrument_files import read_instrument_measurements
+from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
@@ -252,9 +252,13 @@ def _run(args: argparse.Namespace) -> int:
             (out / "calibration_plan.md", ("# Calibration plan\n\n" + plan_text(report, True)).encode()),
         ]
         if args.plan is not None:
-            files.append(
-                (args.plan, plan_csv(mech, report.plan.maps.commands, report.plan.maps.points_m).encode())
+            pm = report.plan.maps
+            text_plan = (
+                instrument_plan_csv(mech, pm.commands, pm.points_m, report.plan.stations)
+                if settings.instrument in ("ballbar", "probe")
+                else plan_csv(mech, pm.commands, pm.points_m)
             )
+            files.append((args.plan, text_plan.encode()))
         study = None
         if args.simulate:
             rep = simulate(
