@@ -545,7 +545,7 @@ def instrument_rows(mech, pset, chain, args):  # noqa: ANN001, ANN201 - script h
         "tracker, frame identified": {"tracker_frame": "identify"},
         "tracker-multi": {"instrument": "tracker-multi"},
         "tracker-6d": {"instrument": "tracker-6d"},
-        "ballbar (2 circles × 25)": {"instrument": "ballbar", "poses": 2, "circle_points": 25},
+        "ballbar (5 circles × 10)": {"instrument": "ballbar", "poses": 5, "circle_points": 10},
         "probe": {"instrument": "probe"},
     }
     rows = []

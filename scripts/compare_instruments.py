@@ -3,7 +3,7 @@
 For each robot and instrument: the plan (size, rank of the controller model, rank over the whole
 candidate pool), the study on exact kinematics (machines at the manufacturing σ and the FOSM
 tolerances of a quick allocation, calibrated by the instrument's D-optimal plan with the
-compensatable controller, held-out random poses: p99 of Δλ and of the tool-axis tilt), and the
+compensatable controller (or the full one where the row says so), held-out random poses: p99 of Δλ and of the tool-axis tilt), and the
 calibrated-mode allocation against the same instrument (`pkmtol allocate --compensation calibrated
 --instrument …`): the number of toleranced parameters and their cost under the default [cost]
 model, or the noise floor that makes any tolerance impossible.
@@ -45,7 +45,9 @@ ROWS = (
     ("tracker (P), frame registered", {}),
     ("tracker (P), frame identified", {"tracker_frame": "identify"}),
     ("tracker-multi (3 reflectors)", {"instrument": "tracker-multi"}),
+    ("tracker-multi, full controller", {"instrument": "tracker-multi", "controller": "full"}),
     ("tracker-6d", {"instrument": "tracker-6d"}),
+    ("tracker-6d, full controller", {"instrument": "tracker-6d", "controller": "full"}),
     ("ballbar (ISO 230-4 circles)", {"instrument": "ballbar"}),
     ("probe (sphere artifact)", {"instrument": "probe"}),
 )
@@ -83,7 +85,7 @@ def run() -> dict:
                     mech.target_m,
                     machines=MACHINES,
                     holdout=HOLDOUT,
-                    controllers=("compensatable",),
+                    controllers=(settings.controller,),
                     selections=("d-optimal",),
                 )
                 case = rep.study.cases[0]
