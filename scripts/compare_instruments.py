@@ -3,8 +3,8 @@
 For each robot and instrument: the plan (size, rank of the controller model, rank over the whole
 candidate pool), the study on exact kinematics (machines at the manufacturing σ and the FOSM
 tolerances of a quick allocation, calibrated by the instrument's D-optimal plan with the
-compensatable controller (or the full one where the row says so), held-out random poses: p99 of Δλ and of the tool-axis tilt), and the
-calibrated-mode allocation against the same instrument (`pkmtol allocate --compensation calibrated
+compensatable controller (or the full one where the row says so), held-out random poses: p99 of
+Δλ and of the tool-axis tilt), and the calibrated-mode allocation against the same instrument (`pkmtol allocate --compensation calibrated
 --instrument …`): the number of toleranced parameters and their cost under the default [cost]
 model, or the noise floor that makes any tolerance impossible.
 
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from dataclasses import replace
@@ -151,7 +152,13 @@ def render(doc: dict) -> str:
     for robot, rows in doc["robots"].items():
         for r in rows:
             if "study_error" in r:
-                study = ["study failed", "-", "-", "-"]
+                m = re.search(r"of (\d+) of (\d+) machines did not converge", r["study_error"])
+                why = (
+                    f"study failed: {m.group(1)} of {m.group(2)} machines not converged"
+                    if m
+                    else "study failed"
+                )
+                study = [why, "-", "-", "-"]
             else:
                 flag = "" if r["linear_valid"] else " ¹"
                 study = [
@@ -161,7 +168,10 @@ def render(doc: dict) -> str:
                     _um(r["p99_tilt_rad"]),
                 ]
             if "allocation_error" in r:
-                alloc = ["none meets Δλ*", "noise floor" if "NoiseFloor" in r["allocation_error"] else "failed"]
+                alloc = [
+                    "none meets Δλ*",
+                    "noise floor" if "NoiseFloor" in r["allocation_error"] else "failed",
+                ]
             else:
                 alloc = [str(r["toleranced"]), f"{r['cost']:.4g}"]
             lines.append("| " + " | ".join([robot, r["label"], *study, *alloc]) + " |")
@@ -181,7 +191,11 @@ def main() -> int:
     if args.check:
         doc = json.loads(DATA.read_text(encoding="utf-8"))
         same = page_with(render(doc)) == PAGE.read_text(encoding="utf-8")
-        print("docs/instruments.md matches docs/data/instruments.json" if same else "docs/instruments.md is stale")
+        print(
+            "docs/instruments.md matches docs/data/instruments.json"
+            if same
+            else "docs/instruments.md is stale"
+        )
         return 0 if same else 1
     doc = run()
     DATA.parent.mkdir(parents=True, exist_ok=True)

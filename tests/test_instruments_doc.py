@@ -1,4 +1,4 @@
-"""docs/instruments.md: its comparison table is the rendering of what scripts/compare_instruments.py measured."""
+"""docs/instruments.md: its comparison table is the rendering of what compare_instruments.py measured."""
 
 from __future__ import annotations
 
