@@ -5,8 +5,9 @@ candidate pool), the study on exact kinematics (machines at the manufacturing σ
 tolerances of a quick allocation, calibrated by the instrument's D-optimal plan with the
 compensatable controller (or the full one where the row says so), held-out random poses: p99 of
 Δλ and of the tool-axis tilt), and the calibrated-mode allocation against the same instrument
-(`pkmtol allocate --compensation calibrated --instrument …`): the number of toleranced parameters and their cost under the default [cost]
-model, or the noise floor that makes any tolerance impossible.
+(`pkmtol allocate --compensation calibrated --instrument …`): the number of toleranced parameters
+and their cost under the default [cost] model, or the noise floor that makes any tolerance
+impossible.
 
 Usage::
 
