@@ -153,6 +153,15 @@ def new_in_taken(tmp: Path) -> Any:
     return cli_run(["new", "exechon", "--out", str(tmp / "taken")])
 
 
+def ballbar_reading_in_degrees(tmp: Path) -> Any:
+    folder = robot(tmp)
+    data = tmp / "ballbar.csv"
+    data.write_text(
+        "pose,limb1.limb1_p3 [mm],limb2.limb2_p3 [mm],limb3.limb3_p3 [mm],station,d [deg]\n0,900,900,900,0,150\n"
+    )
+    return cli_run(["calibrate", str(folder), "--instrument", "ballbar", "--measurements", str(data)])
+
+
 def sidecar_not_utf8(tmp: Path) -> Any:
     folder = tmp / "closed"
     shutil.copytree(REPO / "tests" / "data" / "r2rps_ups_closed", folder)
@@ -354,6 +363,8 @@ CASES: list[Case] = [
     Case("Command line", "`new` into a folder that is not empty", new_in_taken, E.OutputError, ("taken", "not an empty folder")),
     Case("Command line", "`PKMTOL_JIT=maybe` in the environment", jit_switch_misspelt, IA, ("PKMTOL_JIT = 'maybe'", "set it to 0"), {"argument": "PKMTOL_JIT"}),
     Case("Command line", "`new` with a task space the robot cannot reach", cli("new", "tricept", "--task-radius", "1.5", "--out", "{tmp}/big", "--no-progress"), E.RobotCheckError, ("tricept", "117 of 147 task-space points are not reachable"), {"family": "tricept"}),
+    Case("Command line", "`calibrate --instrument ballbar` with a reading in degrees", ballbar_reading_in_degrees, E.MeasurementFileError, ("'d'", "not a length unit")),
+    Case("Command line", "`calibrate --plan-per-machine` without `--simulate`", cli("calibrate", "{robot}", "--plan-per-machine"), E.InvalidRequestError, ("--plan-per-machine", "give --simulate too")),
 ]  # fmt: skip
 
 
