@@ -45,6 +45,8 @@ STEP_OF_STD = 1e-3
 #: ... or when no step lowers the cost and the offered step would change the fitted values by less
 #: than this many σ in all: a cost change below 1 σ², far inside the spread √(2M) of the noise's χ².
 FIT_CHANGE = 1.0
+#: The residuals "show the noise" when their whitened RMS is at least this fraction of σ_m.
+NOISY = 0.1
 #: Levenberg–Marquardt damping tried (relative to the largest singular value squared) when no
 #: halving of the Gauss–Newton step lowers the cost, with nuisance parameters.
 DAMPING = (1e-8, 1e-6, 1e-4, 1e-2)
@@ -341,6 +343,15 @@ def _gauss_newton(
     std_all = ident.noise_m * np.sqrt(np.clip(np.diag(linalg.pinvh(J_aug.T @ J_aug)), 0.0, None))
     # steps below STEP_OF_STD of the noise of their estimate end the iteration (nuisance only)
     settle = np.where(std_all > 0, STEP_OF_STD * std_all, 0.0) if q_n else np.zeros_like(std_all)
+
+    def noisy(c: float) -> bool:
+        """With nuisance parameters, whether the residuals show the noise (RMS ≥ NOISY of σ_m, whitened).
+
+        Only then is an estimate's standard deviation what it knows; noise-free data are iterated
+        to :data:`STEP_TOLERANCE`.
+        """
+        return bool(q_n) and np.sqrt(c / max(measured.size, 1)) >= NOISY * ident.noise_m
+
     poses_now: list[tuple[np.ndarray, np.ndarray]] = []
     all_scale = np.concatenate([scale, np.asarray(inst.nuisance_scale, dtype=float)])
     pi_start = np.zeros(q_n) if pi0 is None else np.asarray(pi0, dtype=float)
@@ -398,7 +409,7 @@ def _gauss_newton(
         if not accepted:
             # at the optimum to the noise: the step the Jacobian offers would change the fitted
             # values by less than FIT_CHANGE σ in all (nuisance instruments only)
-            if q_n and float(np.linalg.norm(J_aug @ full_step)) <= FIT_CHANGE * ident.noise_m:
+            if noisy(cost) and float(np.linalg.norm(J_aug @ full_step)) <= FIT_CHANGE * ident.noise_m:
                 converged = True
             if it == 1 and cost > 0:
                 raise IdentificationError(
@@ -409,7 +420,9 @@ def _gauss_newton(
                 )
             break
         x, q, resid, cost = x_new, q_new, resid_new, new_cost
-        if np.max(np.abs(step) / all_scale) < STEP_TOLERANCE or (q_n and np.all(np.abs(step) <= settle)):
+        if np.max(np.abs(step) / all_scale) < STEP_TOLERANCE or (
+            noisy(cost) and np.all(np.abs(step) <= settle)
+        ):
             converged = True
             break
         if refresh is not None:
