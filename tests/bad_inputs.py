@@ -153,6 +153,15 @@ def new_in_taken(tmp: Path) -> Any:
     return cli_run(["new", "exechon", "--out", str(tmp / "taken")])
 
 
+def ballbar_reading_in_degrees(tmp: Path) -> Any:
+    folder = robot(tmp)
+    data = tmp / "ballbar.csv"
+    data.write_text(
+        "pose,limb1.limb1_p3 [mm],limb2.limb2_p3 [mm],limb3.limb3_p3 [mm],station,d [deg]\n0,900,900,900,0,150\n"
+    )
+    return cli_run(["calibrate", str(folder), "--instrument", "ballbar", "--measurements", str(data)])
+
+
 def sidecar_not_utf8(tmp: Path) -> Any:
     folder = tmp / "closed"
     shutil.copytree(REPO / "tests" / "data" / "r2rps_ups_closed", folder)
@@ -401,6 +410,8 @@ CASES: list[Case] = [
     Case("One tree with loops", "a task frame that is not in the tree", _tree_task_frame_missing, E.ClosedLoopError, ("tcp", "no frame 'tcp'"), {"culprit": "tcp"}),
     Case("One tree with loops", "a constraint model that is not a frame or point anchor", _tree_unknown_constraint, E.ClosedLoopError, ("constraint 1", "FrameAnchorConstraintModel"), {"culprit": "constraint 1"}),
     Case("One tree with loops", "a loop whose two frames are on one body", _tree_loop_on_one_body, E.ClosedLoopError, ("same_body", "same body"), {"culprit": "same_body"}),
+    Case("Command line", "`calibrate --instrument ballbar` with a reading in degrees", ballbar_reading_in_degrees, E.MeasurementFileError, ("'d'", "not a length unit")),
+    Case("Command line", "`calibrate --plan-per-machine` without `--simulate`", cli("calibrate", "{robot}", "--plan-per-machine"), E.InvalidRequestError, ("--plan-per-machine", "give --simulate too")),
 ]  # fmt: skip
 
 

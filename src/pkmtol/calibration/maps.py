@@ -33,6 +33,9 @@ class PoseMaps:
         reference_point_m: Shape (3,): P in the platform frame [m].
         task_projection: Shape (3, 3): what of P's displacement the task counts
             (``Mechanism.task_projection``: ``I``, or the projection onto a planar task's plane).
+        stations: Shape (m,): the instrument station of each pose (a ballbar circle, a probed
+            sphere; None: all 0).
+        groups: Shape (m,): poses a plan takes together (a ballbar circle; None: each its own).
     """
 
     points_m: np.ndarray
@@ -43,6 +46,8 @@ class PoseMaps:
     actuation: np.ndarray
     reference_point_m: np.ndarray
     task_projection: np.ndarray = field(default_factory=lambda: np.eye(3))
+    stations: np.ndarray | None = None
+    groups: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.points_m.shape[0])
@@ -59,7 +64,26 @@ class PoseMaps:
             actuation=self.actuation[idx],
             reference_point_m=self.reference_point_m,
             task_projection=self.task_projection,
+            stations=None if self.stations is None else self.stations[idx],
+            groups=None if self.groups is None else self.groups[idx],
         )
+
+    @property
+    def station_index(self) -> np.ndarray:
+        """The station of every pose (m,) (zeros when none was set)."""
+        return (
+            np.zeros(len(self), dtype=int) if self.stations is None else np.asarray(self.stations, dtype=int)
+        )
+
+    @property
+    def group_index(self) -> np.ndarray:
+        """The plan group of every pose (m,) (each pose its own when none was set)."""
+        return np.arange(len(self)) if self.groups is None else np.asarray(self.groups, dtype=int)
+
+    @property
+    def origins_m(self) -> np.ndarray:
+        """Shape (m, 3): the platform point O' in K [m] (``P − R_k p``)."""
+        return self.points_m - np.einsum("kab,b->ka", self.rotations, self.reference_point_m)
 
     def point_rows(self, targets_m: np.ndarray) -> np.ndarray:
         """Position-error operators of targets fixed on the platform, shape (m, 3·t, 6).

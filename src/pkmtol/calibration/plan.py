@@ -9,13 +9,15 @@ correlations, combinations) is then computed on the chosen poses alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from pkmtol.calibration.identifiability import Identifiability, identifiability
+from pkmtol.calibration.instruments import Instrument, instrument_for
+from pkmtol.calibration.linear_system import LinearSystem, linear_system
 from pkmtol.calibration.maps import PoseMaps, pose_maps
-from pkmtol.calibration.selection import d_optimal, log_det_information, random_subset
+from pkmtol.calibration.selection import d_optimal, random_subset
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep, sweep
@@ -26,18 +28,26 @@ from pkmtol.model.mechanism import Mechanism
 
 @dataclass(frozen=True, eq=False)
 class CalibrationPlan:
-    """Where the tracker measures and what that determines.
+    """Where the instrument measures and what that determines.
 
     Attributes:
         settings: The settings the plan was made with.
-        targets_m: Shape (t, 3): tracker targets in the platform frame [m].
+        targets_m: Shape (t, 3): tracker targets in the platform frame [m] (the tracker family;
+            P for the other instruments).
         chosen: Shape (N,): indices of the chosen poses in the pool.
-        maps: The linear maps at the chosen poses (their nominal P, joints and commands).
-        H: Shape (3·N·t, n): measured coordinates per unit parameter (every parameter of the set).
+        maps: The linear maps at the chosen poses (their nominal P, joints, commands, stations).
+        H: Shape (M, n): the identification Jacobian the estimator works on: the measured values
+            per unit parameter, whitened to the reference σ_m and with the instrument's nuisance
+            parameters projected out (:mod:`pkmtol.calibration.linear_system`); for a tracker in
+            a registered frame, the measured coordinates per unit parameter (3·N·t rows).
         ident: Identifiability of the controller model on the chosen poses.
         scale: Shape (n,): the expected size of every parameter [m or rad] (column scaling).
         prior_sigma: Shape (p,): the MAP prior σ of each controller parameter; None for least squares.
-        log_det: ``log det`` of the chosen poses' information about the pool's base parameters.
+        log_det: ``log det`` of the chosen poses' information about the pool's base parameters
+            (with the nuisance parameters unknown).
+        instrument: The measurement model (None: the tracker of ``settings``).
+        system: The raw linear system at the chosen poses (machine and nuisance rows, weights).
+        pool_rank: Rank of the controller model over the whole candidate pool.
     """
 
     settings: CalibrationSettings
@@ -49,11 +59,23 @@ class CalibrationPlan:
     scale: np.ndarray
     prior_sigma: np.ndarray | None
     log_det: float
+    instrument: Instrument | None = None
+    system: LinearSystem | None = None
+    pool_rank: int = 0
 
     @property
     def poses(self) -> int:
-        """Number of calibration poses N."""
+        """Number of calibration poses N (every reading of every ballbar circle counts)."""
         return int(self.chosen.size)
+
+    @property
+    def stations(self) -> np.ndarray:
+        """The station of every chosen pose (N,)."""
+        return self.maps.station_index
+
+    def measurement_model(self, mechanism: Mechanism) -> Instrument:
+        """The plan's instrument (built from the settings when the plan has none)."""
+        return self.instrument if self.instrument is not None else instrument_for(self.settings, mechanism)
 
 
 def candidate_pool(
@@ -63,36 +85,62 @@ def candidate_pool(
     chain: ClosedChain | None = None,
     grid: Sweep | None = None,
 ) -> PoseMaps:
-    """The task-space grid plus ``settings.candidates`` random reachable poses, as linear maps.
+    """The candidate poses of the plan, as linear maps.
 
-    ``grid`` is the task-space grid's sweep when it has been computed already.
+    A tracker: the task-space grid plus ``settings.candidates`` random reachable poses. The
+    ballbar and the probe: their own candidates (circle readings, approach directions), where the
+    mechanism reaches them. ``grid`` is the task-space grid's sweep when it has been computed already.
+
+    Raises:
+        InvalidRequestError: the mechanism reaches none of the instrument's candidates.
     """
     chain = chain or ClosedChain(mechanism)
     grid_points = mechanism.task_space.grid()
     grid = grid if grid is not None else sweep(mechanism, pset, grid_points, chain)
     maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
+    rng = np.random.default_rng(settings.seed)
+    own = instrument_for(settings, mechanism).candidates(grid_points, rng)
+    if own is not None:
+        keep, q = _reachable(chain, grid, grid_points, own.points_m)
+        if not keep.size:
+            raise InvalidRequestError(
+                f"the mechanism reaches none of the {settings.instrument}'s {len(own.points_m)} candidate "
+                "poses; move the stations (stations_m) into the task space or change their size"
+            )
+        sw = sweep(mechanism, pset, own.points_m[keep], chain, guesses=q)
+        out = pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
+        return replace(out, stations=own.stations[keep], groups=own.groups[keep])
     if settings.candidates == 0:
         return maps
-    rng = np.random.default_rng(settings.seed)
     points = mechanism.task_space.sample(rng, settings.candidates)
-    keep_points, keep_q = [], []
-    for p in points:
+    keep, q = _reachable(chain, grid, grid_points, points)
+    if not keep.size:
+        return maps
+    extra = sweep(mechanism, pset, points[keep], chain, guesses=q)
+    more = pose_maps(extra, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
+    return concat_maps(maps, more)
+
+
+def _reachable(
+    chain: ClosedChain, grid: Sweep, grid_points: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the reachable ``points`` and their joint values, from the nearest grid pose."""
+    keep, keep_q = [], []
+    for i, p in enumerate(points):
         k = int(np.argmin(np.sum((grid_points - p) ** 2, axis=1)))
         try:
             pose = chain.inverse(p, chain.predict(grid.poses[k], p))
         except KinematicsError:
             continue
-        keep_points.append(p)
+        keep.append(i)
         keep_q.append(pose.q_all)
-    if not keep_points:
-        return maps
-    extra = sweep(mechanism, pset, np.array(keep_points), chain, guesses=np.array(keep_q))
-    more = pose_maps(extra, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
-    return concat_maps(maps, more)
+    return np.array(keep, dtype=int), np.array(keep_q)
 
 
 def concat_maps(a: PoseMaps, b: PoseMaps) -> PoseMaps:
-    """The poses of ``a`` then those of ``b``."""
+    """The poses of ``a`` then those of ``b`` (stations and groups of ``a`` kept only if both have them)."""
+    both = a.stations is not None and b.stations is not None
+    groups = a.groups is not None and b.groups is not None
     return PoseMaps(
         points_m=np.concatenate([a.points_m, b.points_m]),
         rotations=np.concatenate([a.rotations, b.rotations]),
@@ -101,6 +149,9 @@ def concat_maps(a: PoseMaps, b: PoseMaps) -> PoseMaps:
         twist=np.concatenate([a.twist, b.twist]),
         actuation=np.concatenate([a.actuation, b.actuation]),
         reference_point_m=a.reference_point_m,
+        task_projection=a.task_projection,
+        stations=np.concatenate([a.station_index, b.station_index]) if both else None,
+        groups=np.concatenate([a.group_index, b.group_index]) if groups else None,
     )
 
 
@@ -121,55 +172,83 @@ def make_plan(
         mechanism: The mechanism.
         pset: Its parameter set.
         classes: The class of every parameter (``Sweep.classify``).
-        settings: Targets, noise, pose count, selection, controller, prior, rank tolerance.
+        settings: Instrument, targets, noise, pose count, selection, controller, prior, rank tolerance.
         pool: The candidate poses (:func:`candidate_pool`).
         sigma: Shape (n,): the expected size of every parameter [m or rad] (manufacturing σ for the
             compensatable ones, tolerances for the others; default: the manufacturing σ by unit);
             it scales the columns and sizes the prior.
-        poses: N (default ``settings.poses``).
+        poses: N (default ``settings.poses``; the ballbar: circles).
         selection: ``d-optimal`` or ``random`` (default ``settings.selection``).
         chosen: Explicit pool indices (overrides ``poses`` and ``selection``).
 
     Raises:
-        InvalidRequestError: more poses than the pool holds, or fewer coordinates than the rank.
+        InvalidRequestError: more poses than the pool holds, or fewer values than the unknowns.
     """
+    inst = instrument_for(settings, mechanism)
     targets = settings.targets(mechanism)
     n = len(pset)
     scale = settings.manufacturing_sigma(pset) if sigma is None else np.asarray(sigma, dtype=float).copy()
     unit_scale = settings.manufacturing_sigma(pset)
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, unit_scale)
     columns = settings.controller_columns(pset, classes)
-    rows_pool = pool.measurement_rows(targets)  # (m, 3t, n)
-    H_pool = rows_pool.reshape(-1, n)
+    sys_pool = linear_system(inst, pool, settings.noise_m)
     ident_pool = identifiability(
-        H_pool, columns, pset.names, pset.units, scale, len(pool), settings.noise_m, settings.rank_tolerance
+        sys_pool.effective,
+        columns,
+        pset.names,
+        pset.units,
+        scale,
+        len(pool),
+        settings.noise_m,
+        settings.rank_tolerance,
     )
     base = ident_pool.base_columns
-    blocks = rows_pool[:, :, base] * scale[base][None, None, :]
+    r = inst.values_per_pose
+    machine_w = (sys_pool.machine * sys_pool.weights[:, None]).reshape(len(pool), r, n)
+    nuis_w = (sys_pool.nuisance * sys_pool.weights[:, None]).reshape(len(pool), r, -1)
+    blocks = np.concatenate(
+        [machine_w[:, :, base] * scale[base][None, None, :], nuis_w / inst.nuisance_scale[None, None, :]],
+        axis=2,
+    )
     count = settings.poses if poses is None else int(poses)
     how = settings.selection if selection is None else selection
     if chosen is None:
-        if count > len(pool):
+        groups = pool.group_index
+        labels, first = np.unique(groups, return_index=True)
+        labels = labels[np.argsort(first)]
+        if count > labels.size:
+            what = "circles" if inst.name == "ballbar" else "poses"
             raise InvalidRequestError(
-                f"{count} calibration poses asked for, but the candidate pool has {len(pool)}; "
-                "lower --poses or raise candidates"
+                f"{count} calibration {what} asked for, but the candidate pool has {labels.size}; "
+                f"lower --poses or raise candidates"
             )
+        members = [np.flatnonzero(groups == g) for g in labels]
         if how == "d-optimal":
-            chosen = d_optimal(blocks, count)
+            size = max(len(m) for m in members)
+            gb = np.zeros((labels.size, size * r, blocks.shape[2]))
+            for i, m in enumerate(members):
+                gb[i, : len(m) * r] = blocks[m].reshape(-1, blocks.shape[2])
+            picked = d_optimal(gb, count, nuisance=inst.nuisance_count)
         else:
-            chosen = random_subset(len(pool), count, np.random.default_rng(settings.seed + 7919 * count))
+            picked = random_subset(labels.size, count, np.random.default_rng(settings.seed + 7919 * count))
+        chosen = np.concatenate([members[i] for i in picked])
     chosen = np.asarray(chosen, dtype=int)
     maps = pool.subset(chosen)
-    H = maps.measurement_rows(targets).reshape(-1, n)
+    system = linear_system(inst, maps, settings.noise_m)
+    H = system.effective
     ident = identifiability(
         H, columns, pset.names, pset.units, scale, chosen.size, settings.noise_m, settings.rank_tolerance
     )
-    if H.shape[0] < ident_pool.rank:
+    unknowns = ident_pool.rank + system.nuisance_rank
+    if H.shape[0] < unknowns:
         raise InvalidRequestError(
-            f"{chosen.size} poses × {targets.shape[0]} target(s) give {H.shape[0]} measured coordinates, "
-            f"fewer than the {ident_pool.rank} identifiable combinations of the controller model; "
-            "measure more poses or more targets"
+            f"{chosen.size} poses × {r} value(s) give {H.shape[0]} measured values, fewer than the "
+            f"{ident_pool.rank} identifiable combinations of the controller model and "
+            f"{system.nuisance_rank} nuisance parameters of the {inst.name}; measure more poses"
+            + (" or more targets" if inst.name.startswith("tracker") else "")
         )
+    Hs = H[:, base] * scale[base][None, :]
+    sign, log_det = np.linalg.slogdet(Hs.T @ Hs)
     return CalibrationPlan(
         settings=settings,
         targets_m=targets,
@@ -179,5 +258,8 @@ def make_plan(
         ident=ident,
         scale=scale,
         prior_sigma=scale[columns] if settings.prior else None,
-        log_det=log_det_information(blocks, chosen),
+        log_det=float(log_det) if sign > 0 else float("-inf"),
+        instrument=inst,
+        system=system,
+        pool_rank=ident_pool.rank,
     )

@@ -26,13 +26,21 @@ def log_det_information(blocks: np.ndarray, chosen: np.ndarray) -> float:
     return float(value) if sign > 0 else float("-inf")
 
 
-def d_optimal(blocks: np.ndarray, count: int, fixed: np.ndarray | None = None) -> np.ndarray:
+def d_optimal(
+    blocks: np.ndarray, count: int, fixed: np.ndarray | None = None, nuisance: int = 0
+) -> np.ndarray:
     """Indices of ``count`` poses of the pool that maximise ``log det`` of the information.
+
+    With ``nuisance`` > 0 the last ``nuisance`` columns are an instrument's nuisance parameters
+    (identified with the machine, then dropped): the criterion is then the information about the
+    machine's base parameters with the nuisance unknown (Ds-optimality),
+    ``log det M − log det M_ππ``, so that touching a new station once is worth nothing.
 
     Args:
         blocks: Shape (m, rows, r): each candidate pose's rows of the scaled base Jacobian.
         count: Number of poses to choose (``count · rows ≥ r`` for a non-singular information).
         fixed: Candidates that must be in the set (they are never exchanged).
+        nuisance: Trailing nuisance columns of ``blocks``.
 
     Returns:
         Shape (count,): chosen candidate indices (greedy order, then exchanged in place).
@@ -53,8 +61,23 @@ def d_optimal(blocks: np.ndarray, count: int, fixed: np.ndarray | None = None) -
         M += blocks[k].T @ blocks[k]
         chosen.append(k)
         available[k] = False
+    q = int(nuisance)
+
+    def gains(M_: np.ndarray) -> np.ndarray:
+        g = _gains(blocks, np.linalg.inv(M_))
+        if q:
+            g = g - _gains(blocks[:, :, r - q :], np.linalg.inv(M_[r - q :, r - q :]))
+        return g
+
+    def criterion(M_: np.ndarray) -> tuple[float, float]:
+        sign, value = np.linalg.slogdet(M_)
+        if q:
+            s_n, v_n = np.linalg.slogdet(M_[r - q :, r - q :])
+            return min(sign, s_n), value - v_n
+        return sign, value
+
     while len(chosen) < count:
-        gain = _gains(blocks, np.linalg.inv(M))
+        gain = gains(M)
         gain[~available] = -np.inf
         k = int(np.argmax(gain))
         M += blocks[k].T @ blocks[k]
@@ -67,12 +90,12 @@ def d_optimal(blocks: np.ndarray, count: int, fixed: np.ndarray | None = None) -
         for pos in range(free, count):
             out = chosen_arr[pos]
             M_out = M - blocks[out].T @ blocks[out]
-            sign, base = np.linalg.slogdet(M_out)
+            sign, base = criterion(M_out)
             if sign <= 0:
                 continue
-            gain = _gains(blocks, np.linalg.inv(M_out))
+            gain = gains(M_out)
             gain[~available] = -np.inf
-            gain_out = float(np.linalg.slogdet(M)[1]) - base
+            gain_out = criterion(M)[1] - base
             k = int(np.argmax(gain))
             if gain[k] > gain_out * (1 + 1e-12) + 1e-12:
                 available[out], available[k] = True, False

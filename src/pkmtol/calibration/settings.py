@@ -36,6 +36,22 @@ from pkmtol.units import parse_angle, parse_length
 
 CONTROLLERS = ("compensatable", "full")
 SELECTIONS = ("d-optimal", "random")
+#: The measurement models (docs/instruments.md).
+INSTRUMENTS = ("tracker", "tracker-multi", "tracker-6d", "ballbar", "probe")
+#: How a tracker's frame is known: registered to K before the session, or identified with the machine.
+TRACKER_FRAMES = ("registered", "identify")
+#: Per instrument: the default noise σ of its (first) value [m] and the default plan size (poses;
+#: circles for the ballbar).
+INSTRUMENT_DEFAULTS: dict[str, tuple[float, int]] = {
+    "tracker": (1e-5, 40),
+    "tracker-multi": (1e-5, 40),
+    "tracker-6d": (1e-5, 40),
+    "ballbar": (1e-6, 6),
+    "probe": (1e-6, 120),
+}
+#: Reflectors of ``tracker-multi`` when ``targets_m`` is not given: P and 0.1 m from it along the
+#: platform's x and y axes.
+MULTI_OFFSETS_M = ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.0, 0.1, 0.0))
 #: Keys of the ``[calibration]`` table.
 TABLE_KEYS = (
     "targets_m",
@@ -48,6 +64,15 @@ TABLE_KEYS = (
     "candidates",
     "manufacturing_length",
     "manufacturing_angle",
+    "instrument",
+    "orientation_noise",
+    "tracker_frame",
+    "stations_m",
+    "ballbar_length",
+    "circle_planes",
+    "circle_points",
+    "artifact_radius",
+    "approach_directions",
 )
 
 
@@ -56,9 +81,12 @@ class CalibrationSettings:
     """How the machine will be calibrated.
 
     Attributes:
-        targets_m: Tracker targets in the platform frame, ``((x, y, z), ...)`` [m]; empty: P only.
-        noise_m: Tracker noise σ_m per measured coordinate [m].
-        poses: Number of calibration poses N.
+        targets_m: Tracker targets in the platform frame, ``((x, y, z), ...)`` [m]; empty: P only
+            (``tracker-multi``: P and two points 0.1 m from it).
+        noise_m: Noise σ_m of the instrument's reading [m]: per tracker coordinate, per ballbar
+            reading, per probe touch (NaN: the instrument's default, 10 µm for a tracker, 1 µm for
+            the ballbar and the probe). Tables name it the reference σ.
+        poses: Number of calibration poses N (the ballbar: circles; 0: the instrument's default).
         selection: ``d-optimal`` or ``random`` (from the candidate pool).
         controller: ``compensatable``, ``full``, or an explicit tuple of parameter names.
         prior: Identify every controller parameter with a Gaussian prior (MAP) instead of least
@@ -68,11 +96,23 @@ class CalibrationSettings:
         manufacturing_length_m: σ of the compensatable length errors before calibration [m].
         manufacturing_angle_rad: σ of the compensatable angle errors [rad].
         seed: Random seed (candidate pool, random plans).
+        instrument: The measurement model, one of :data:`INSTRUMENTS`.
+        orientation_noise_rad: σ per rotation component of ``tracker-6d`` [rad].
+        tracker_frame: ``registered`` (the tracker reads in K) or ``identify`` (its transform to
+            K is identified with the machine: 6 nuisance parameters).
+        stations_m: Ballbar table-ball centres or probed sphere centres in K [m] (empty: 5 per
+            height around the task space's axis, :func:`~pkmtol.calibration.instruments.default_centres`).
+        ballbar_length_m: The ballbar's length = the circles' radius [m] (0: a quarter of the
+            task space's radius).
+        circle_planes: The planes of the ballbar circles about every centre (xy, yz, zx).
+        circle_points: Readings per ballbar circle.
+        artifact_radius_m: The probed sphere's effective radius (sphere + stylus tip) [m].
+        approach_directions: Candidate approach directions per probed station.
     """
 
     targets_m: tuple[tuple[float, float, float], ...] = ()
-    noise_m: float = 1e-5
-    poses: int = 40
+    noise_m: float = float("nan")
+    poses: int = 0
     selection: str = "d-optimal"
     controller: str | tuple[str, ...] = "compensatable"
     prior: bool = False
@@ -81,9 +121,63 @@ class CalibrationSettings:
     manufacturing_length_m: float = 1e-4
     manufacturing_angle_rad: float = 5e-4
     seed: int = 0
+    instrument: str = "tracker"
+    orientation_noise_rad: float = 1e-4
+    tracker_frame: str = "registered"
+    stations_m: tuple[tuple[float, float, float], ...] = ()
+    ballbar_length_m: float = 0.0
+    circle_planes: tuple[str, ...] = ("xy", "yz", "zx")
+    circle_points: int = 36
+    artifact_radius_m: float = 0.0137
+    approach_directions: int = 24
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
+        if self.instrument not in INSTRUMENTS:
+            close = difflib.get_close_matches(str(self.instrument), INSTRUMENTS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise InvalidRequestError(
+                f"unknown instrument {self.instrument!r}{hint}; use one of {', '.join(INSTRUMENTS)}"
+            )
+        if self.tracker_frame not in TRACKER_FRAMES:
+            raise InvalidRequestError(
+                f"unknown tracker_frame {self.tracker_frame!r}; use one of {', '.join(TRACKER_FRAMES)}"
+            )
+        noise, poses = INSTRUMENT_DEFAULTS[self.instrument]
+        if isinstance(self.noise_m, float) and np.isnan(self.noise_m):
+            object.__setattr__(self, "noise_m", noise)
+        if self.poses == 0 and not isinstance(self.poses, bool):
+            object.__setattr__(self, "poses", poses)
+        for name, value in (
+            ("orientation_noise_rad", self.orientation_noise_rad),
+            ("ballbar_length_m", self.ballbar_length_m),
+            ("artifact_radius_m", self.artifact_radius_m),
+        ):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not np.isfinite(value)
+                or value < 0
+            ):
+                raise InvalidRequestError(f"calibration {name} must be a finite number ≥ 0, got {value!r}")
+        for name, value, low in (
+            ("circle_points", self.circle_points, 4),
+            ("approach_directions", self.approach_directions, 4),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InvalidRequestError(f"calibration {name} must be an integer ≥ {low}, got {value!r}")
+        bad = [p for p in self.circle_planes if p not in ("xy", "yz", "zx")]
+        if bad or not self.circle_planes:
+            raise InvalidRequestError(
+                f"circle_planes must be a list of xy, yz, zx; got {list(self.circle_planes)!r}"
+            )
+        st = (
+            np.asarray(self.stations_m, dtype=float).reshape(-1, 3)
+            if len(self.stations_m)
+            else np.zeros((0, 3))
+        )
+        if not np.all(np.isfinite(st)):
+            raise InvalidRequestError("calibration stations_m must be finite [x, y, z] points in metres")
         for name, value in (
             ("noise_m", self.noise_m),
             ("manufacturing_length_m", self.manufacturing_length_m),
@@ -122,10 +216,16 @@ class CalibrationSettings:
             raise InvalidRequestError("calibration targets_m must be finite [x, y, z] in metres")
 
     def targets(self, mechanism: Mechanism) -> np.ndarray:
-        """The tracker targets (t, 3) in the platform frame [m]: ``targets_m``, or P alone."""
+        """The tracker targets (t, 3) in the platform frame [m]: ``targets_m``, or P alone.
+
+        ``tracker-multi`` without ``targets_m``: P and :data:`MULTI_OFFSETS_M` from it.
+        """
         if len(self.targets_m):
             return np.asarray(self.targets_m, dtype=float).reshape(-1, 3)
-        return np.asarray(mechanism.reference_point_m, dtype=float)[None, :]
+        p = np.asarray(mechanism.reference_point_m, dtype=float)
+        if self.instrument == "tracker-multi":
+            return p[None, :] + np.asarray(MULTI_OFFSETS_M)
+        return p[None, :]
 
     def controller_columns(self, pset: ParameterSet, classes: list[str]) -> np.ndarray:
         """Indices of the controller model's parameters in ``pset``.
@@ -196,6 +296,23 @@ def _read(key: str, value: Any) -> dict[str, Any]:
         return {"manufacturing_length_m": parse_length(_with_unit(value, key), key)}
     if key == "manufacturing_angle":
         return {"manufacturing_angle_rad": parse_angle(value, key)}
+    if key == "orientation_noise":
+        return {"orientation_noise_rad": parse_angle(value, key)}
+    if key == "ballbar_length":
+        return {"ballbar_length_m": parse_length(_with_unit(value, key), key)}
+    if key == "artifact_radius":
+        return {"artifact_radius_m": parse_length(_with_unit(value, key), key)}
+    if key == "stations_m":
+        pts = np.asarray(value, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+            raise InvalidRequestError(f"expected a list of [x, y, z] points in metres, got {value!r}")
+        return {"stations_m": tuple(tuple(float(c) for c in p) for p in pts)}
+    if key == "circle_planes":
+        if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
+            raise InvalidRequestError(f"expected a list of planes (xy, yz, zx), got {value!r}")
+        return {"circle_planes": tuple(value)}
+    if key in ("instrument", "tracker_frame") and not isinstance(value, str):
+        raise InvalidRequestError(f"expected a name, got {value!r}")
     if key == "controller":
         if isinstance(value, list):
             if not all(isinstance(x, str) for x in value):

@@ -27,6 +27,8 @@ from pkmtol.model.mechanism import Mechanism
 
 #: Pose counts of the p99-against-N curve.
 CURVE_POSES = (10, 15, 20, 30, 40, 60, 80, 100)
+#: The same for the ballbar, in circles.
+CURVE_CIRCLES = (2, 3, 4, 6, 8, 10, 15)
 
 
 def design_sigma(
@@ -141,8 +143,12 @@ def plan_report(
         rnd.append(_summary(f"random #{k + 1}", p, ho.maps, sigma, target_m, axis))
     points = []
     if curve:
-        for n in CURVE_POSES:
-            if n > len(pool) or 3 * n * plan.targets_m.shape[0] < plan.ident.rank:
+        inst = plan.measurement_model(mechanism)
+        groups = np.unique(pool.group_index).size
+        per_group = plan.poses / max(np.unique(plan.maps.group_index).size, 1)
+        for n in CURVE_CIRCLES if inst.name == "ballbar" else CURVE_POSES:
+            values = n * per_group * inst.values_per_pose
+            if n > groups or values < plan.ident.rank + inst.nuisance_count:
                 continue
             d = make_plan(mechanism, pset, classes, settings, pool, sigma, poses=n, selection="d-optimal")
             p99_d = _summary("d", d, ho.maps, sigma, target_m, axis).prediction.p99_m
@@ -208,6 +214,7 @@ def simulate(
     selections: tuple[str, ...] = SELECTIONS,
     tool_axis: np.ndarray | None = None,
     executor: Executor | None = None,
+    plans_per_machine: bool = False,
 ) -> StudyReport:
     """The calibration study on exact kinematics (:mod:`pkmtol.calibration.study`).
 
@@ -224,6 +231,8 @@ def simulate(
         selections: Pose selections to compare.
         tool_axis: Tool axis in the platform frame (default z).
         executor: Where the machines are simulated (None: serial); the numbers do not depend on it.
+        plans_per_machine: Calibrate every machine by its own plan: a random plan of its own seed,
+            or the D-optimal plan of its own random half of the candidate pool.
     """
     if isinstance(machines, bool) or not isinstance(machines, int) or machines < 1:
         raise InvalidRequestError(f"the study needs an integer number of machines ≥ 1, got {machines!r}")
@@ -239,9 +248,27 @@ def simulate(
     for ctrl in ctrls:
         s_c = _with(settings, controller=ctrl)
         for sel in selections:
-            case = StudyCase(controller=ctrl, selection=sel, poses=settings.poses)
+            unit = "circles" if settings.instrument == "ballbar" else "poses"
+            case = StudyCase(controller=ctrl, selection=sel, poses=settings.poses, unit=unit)
             plans.append((case, make_plan(mechanism, pset, classes, s_c, pool, sigma, selection=sel)))
-    ctx = study_context(mechanism, pset, sigma, ho.maps, ho.correction, ho.ideal, plans, target_m, tool_axis)
+    per_machine = None
+    if plans_per_machine:
+        per_machine = [
+            machine_plans(
+                mechanism,
+                pset,
+                classes,
+                _with(settings, controller=case.controller),
+                pool,
+                sigma,
+                case.selection,
+                machines,
+            )
+            for case, _ in plans
+        ]
+    ctx = study_context(
+        mechanism, pset, sigma, ho.maps, ho.correction, ho.ideal, plans, target_m, tool_axis, per_machine
+    )
     timings["plans"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     study = run_study(ctx, machines, settings.seed, chunk=5 if executor is None else 10, executor=executor)
@@ -249,6 +276,37 @@ def simulate(
     return StudyReport(
         study=study, settings=settings, sigma=sigma, holdout_skipped=ho.skipped, timings_s=timings
     )
+
+
+def machine_plans(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    classes: list[str],
+    settings: CalibrationSettings,
+    pool: PoseMaps,
+    sigma: np.ndarray,
+    selection: str,
+    machines: int,
+) -> list[CalibrationPlan]:
+    """One plan per machine: random plans of their own seeds, or D-optimal on random halves of the pool.
+
+    Each draw is seeded by the machine's index (``SeedSequence((seed, 61, k))``), so the plans do
+    not depend on how the machines are run.
+    """
+    out = []
+    for k in range(machines):
+        rng = np.random.default_rng(np.random.SeedSequence((settings.seed, 61, k)))
+        if selection == "random":
+            s_k = _with(settings, seed=int(rng.integers(0, 2**31)))
+            out.append(make_plan(mechanism, pset, classes, s_k, pool, sigma, selection="random"))
+            continue
+        groups = np.unique(pool.group_index)
+        half = rng.choice(groups, size=max(settings.poses, groups.size // 2), replace=False)
+        sub = np.flatnonzero(np.isin(pool.group_index, half))
+        out.append(
+            make_plan(mechanism, pset, classes, settings, pool.subset(sub), sigma, selection="d-optimal")
+        )
+    return out
 
 
 def grid_classes(mechanism: Mechanism, pset: ParameterSet) -> list[str]:

@@ -9,6 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.instrument_data import calibrate_instrument_data
+from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
+from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
@@ -32,6 +35,12 @@ from pkmtol.present.calibration_tables import (
     residuals_csv,
     study_json,
     study_text,
+)
+from pkmtol.present.instrument_tables import (
+    instrument_identified_csv,
+    instrument_json,
+    instrument_residuals_csv,
+    instrument_text,
 )
 from pkmtol.present.tables import check_output_folder
 
@@ -58,6 +67,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--simulate", action="store_true", help="run the exact-kinematics calibration study")
     p.add_argument("--machines", type=int, default=100, help="machines of the study (default 100)")
     p.add_argument("--holdout", type=int, default=200, help="held-out random poses (default 200)")
+    p.add_argument(
+        "--plan-per-machine",
+        action="store_true",
+        help="--simulate: calibrate every machine by its own plan (a new random plan, or the D-optimal "
+        "plan of its own half of the candidate pool) and report the plan-to-plan spread",
+    )
     p.add_argument("--measurements", type=Path, default=None, help="identify from this measurement CSV")
     p.add_argument(
         "--tolerances",
@@ -128,6 +143,41 @@ def _tolerances(
     ], f"FOSM tolerances at β = {res.design_beta:g} (quick allocation)"
 
 
+def _instrument_data(
+    mech: Mechanism,
+    pset: ParameterSet,
+    classes: list[str],
+    settings: CalibrationSettings,
+    args: argparse.Namespace,
+    out: Path,
+) -> list[tuple[Path, bytes]]:
+    """Identify from the data of an instrument other than a registered tracker; the files to write."""
+    inst = instrument_for(settings, mech)
+    stations = len(getattr(inst, "centres_m", [0]))
+    meas = read_instrument_measurements(
+        args.measurements, mech, inst, settings.targets(mech).shape[0], stations
+    )
+    sigma = None
+    if settings.prior:
+        tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
+        sigma = design_sigma(pset, classes, settings, tol)
+    cal = calibrate_instrument_data(mech, pset, classes, settings, meas, args.measurements, sigma)
+    files = [
+        (out / "identified.json", dumps(instrument_json(cal, pset.names)).encode()),
+        (out / "identified.csv", instrument_identified_csv(cal).encode()),
+        (out / "identified.md", ("# Identified parameters\n\n" + instrument_text(cal, True)).encode()),
+        (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
+    ]
+    try:
+        urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
+        toml = calibrated_toml(mech, pset, cal.result.estimate)
+        files += write_calibrated_folder(out / "calibrated", urdfs, toml)
+    except Exception as err:  # noqa: BLE001 - reported, the identification stands
+        print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
+    print(instrument_text(cal), end="")
+    return files
+
+
 def _run(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.robot)
     for name, value, low in (
@@ -139,6 +189,8 @@ def _run(args: argparse.Namespace) -> int:
             raise InvalidRequestError(f"{name} must be ≥ {low}, got {value}")
     if args.simulate and args.measurements is not None:
         raise InvalidRequestError("give either --simulate or --measurements, not both")
+    if args.plan_per_machine and not args.simulate:
+        raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = parameter_set(mech, args.pset or default_set(mech))
@@ -149,7 +201,12 @@ def _run(args: argparse.Namespace) -> int:
     classes = grid_classes(mech, pset)
     files: list[tuple[Path, bytes]] = []
     figures: dict[str, object] = {}
-    if args.measurements is not None:
+    registered = (
+        settings.instrument in ("tracker", "tracker-multi") and settings.tracker_frame == "registered"
+    )
+    if args.measurements is not None and not registered:
+        files += _instrument_data(mech, pset, classes, settings, args, out)
+    elif args.measurements is not None:
         meas = read_measurements(args.measurements, mech, settings.targets(mech).shape[0])
         sigma = None
         if settings.prior:
@@ -195,9 +252,13 @@ def _run(args: argparse.Namespace) -> int:
             (out / "calibration_plan.md", ("# Calibration plan\n\n" + plan_text(report, True)).encode()),
         ]
         if args.plan is not None:
-            files.append(
-                (args.plan, plan_csv(mech, report.plan.maps.commands, report.plan.maps.points_m).encode())
+            pm = report.plan.maps
+            text_plan = (
+                instrument_plan_csv(mech, pm.commands, pm.points_m, report.plan.stations)
+                if settings.instrument in ("ballbar", "probe")
+                else plan_csv(mech, pm.commands, pm.points_m)
             )
+            files.append((args.plan, text_plan.encode()))
         study = None
         if args.simulate:
             rep = simulate(
@@ -210,6 +271,7 @@ def _run(args: argparse.Namespace) -> int:
                 args.machines,
                 args.holdout,
                 executor=executor,
+                plans_per_machine=args.plan_per_machine,
             )
             study = rep.study
             text += "\n" + study_text(rep)

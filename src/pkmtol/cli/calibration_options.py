@@ -5,22 +5,54 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pkmtol.calibration.settings import CONTROLLERS, SELECTIONS, CalibrationSettings, settings_from_table
+from pkmtol.calibration.settings import (
+    CONTROLLERS,
+    INSTRUMENTS,
+    SELECTIONS,
+    TRACKER_FRAMES,
+    CalibrationSettings,
+    settings_from_table,
+)
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.units import parse_length
 
 
 def add_plan_options(p: argparse.ArgumentParser) -> None:
-    """Register the plan options: poses, selection, controller, noise, prior, rank tolerance, candidates."""
+    """Register the plan options: instrument and frame, poses, selection, controller, noise, prior, ranks."""
     g = p.add_argument_group("calibration plan (default: the [calibration] table of mechanism.toml)")
-    g.add_argument("--poses", type=int, default=None, help="calibration poses N (default 40)")
+    g.add_argument(
+        "--instrument",
+        choices=INSTRUMENTS,
+        default=None,
+        help="measurement model: tracker (P's position, default), tracker-multi (several reflectors), "
+        "tracker-6d (position and orientation), ballbar (ISO 230-4 circles), probe (touches on a "
+        "sphere artifact); docs/instruments.md",
+    )
+    g.add_argument(
+        "--tracker-frame",
+        choices=TRACKER_FRAMES,
+        default=None,
+        help="registered: the tracker reads in the base frame (default); identify: its transform to "
+        "the base is identified with the machine (6 parameters)",
+    )
+    g.add_argument(
+        "--poses",
+        type=int,
+        default=None,
+        help="calibration poses N (default 40; probe 120 touches; ballbar: circles, default 6)",
+    )
     g.add_argument("--selection", choices=SELECTIONS, default=None, help="pose selection (default d-optimal)")
     g.add_argument(
         "--controller",
         default=None,
         help="controller model: compensatable (default), full, or comma-separated parameter names",
     )
-    g.add_argument("--noise", default=None, help="tracker noise σ per coordinate, e.g. 0.01mm (default)")
+    g.add_argument(
+        "--noise",
+        default=None,
+        help="instrument noise σ per reading, e.g. 0.01mm (default: tracker 0.01mm, ballbar and probe "
+        "0.001mm)",
+    )
     g.add_argument("--prior", action="store_true", help="identify with a Gaussian prior (MAP)")
     g.add_argument(
         "--rank-tolerance", type=float, default=None, help="relative pivot tolerance (default 1e-6)"
@@ -37,6 +69,8 @@ def plan_settings(mech: Mechanism, args: argparse.Namespace, seed: int | None = 
         names = [c.strip() for c in args.controller.split(",") if c.strip()]
         controller = names[0] if len(names) == 1 and names[0] in CONTROLLERS else tuple(names)
     overrides = {
+        "instrument": getattr(args, "instrument", None),
+        "tracker_frame": getattr(args, "tracker_frame", None),
         "poses": args.poses,
         "selection": args.selection,
         "controller": controller,

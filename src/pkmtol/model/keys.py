@@ -75,6 +75,15 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "candidates",
             "manufacturing_length",
             "manufacturing_angle",
+            "instrument",
+            "orientation_noise",
+            "tracker_frame",
+            "stations_m",
+            "ballbar_length",
+            "circle_planes",
+            "circle_points",
+            "artifact_radius",
+            "approach_directions",
         }
     ),
     # read by pkmtol.model.drawing (its TABLE_KEYS; tests/test_signoff.py keeps them equal)

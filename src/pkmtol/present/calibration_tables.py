@@ -15,7 +15,7 @@ import numpy as np
 
 from pkmtol.calibration.identifiability import Identifiability
 from pkmtol.calibration.real_data import RealCalibration
-from pkmtol.calibration.study import ErrorSummary
+from pkmtol.calibration.study import LINEAR_WARNING, ErrorSummary
 from pkmtol.calibration.workflow import PlanReport, PlanSummary, StudyReport
 from pkmtol.present.tables import text_table
 
@@ -101,6 +101,16 @@ def plan_text(report: PlanReport, markdown: bool = False) -> str:
         f"{1e3 * st.noise_m:.4g} mm per coordinate" + (", MAP prior" if st.prior else ", least squares"),
         "",
     ]
+    if plan.instrument is not None and (plan.instrument.name != "tracker" or plan.instrument.nuisance_count):
+        head = [
+            f"calibration plan: controller '{st.controller_label}' ({plan.ident.columns.size} parameters), "
+            f"{plan.poses} {st.selection} poses"
+            + (f" on {np.unique(plan.stations).size} circles" if plan.instrument.name == "ballbar" else "")
+            + (", MAP prior" if st.prior else ", least squares"),
+            "instrument " + plan.instrument.describe(),
+            f"rank over the whole candidate pool: {plan.pool_rank}",
+            "",
+        ]
     out = head + identifiability_lines(plan.ident, markdown)
     rows = [
         [
@@ -161,6 +171,10 @@ def plan_json(report: PlanReport, names: list[str]) -> dict[str, Any]:
         }
 
     return {
+        "instrument": plan.settings.instrument,
+        "tracker_frame": plan.settings.tracker_frame,
+        "nuisance_parameters": list(plan.instrument.nuisance_names) if plan.instrument else [],
+        "pool_rank": plan.pool_rank,
         "controller": plan.settings.controller_label,
         "controller_parameters": list(ident.names),
         "targets_m": plan.targets_m.tolist(),
@@ -169,6 +183,7 @@ def plan_json(report: PlanReport, names: list[str]) -> dict[str, Any]:
         "poses": {
             "points_m": plan.maps.points_m.tolist(),
             "commands_si": plan.maps.commands.tolist(),
+            "stations": plan.stations.tolist(),
         },
         "identifiability": identifiability_json(ident),
         "plan": summ(report.summary),
@@ -224,11 +239,20 @@ def study_text(report: StudyReport, markdown: bool = False) -> str:
     """The study's table: before, Eq. 25, after each calibration (exact and its linear prediction)."""
     st, study = report.settings, report.study
     n_ho = len(study.holdout_points_m)
+    inst = study.cases[0].plan.instrument if study.cases else None
+    what = (
+        f"tracker noise {1e3 * st.noise_m:.4g} mm per coordinate"
+        if inst is None or (inst.name == "tracker" and not inst.nuisance_count)
+        else "instrument " + inst.describe()
+    )
     out = [
         f"calibration study on exact kinematics: {study.machines} machines × {n_ho} held-out random poses "
-        f"(Δλ* = {1e3 * study.target_m:g} mm; tracker noise {1e3 * st.noise_m:.4g} mm per coordinate; "
-        f"{st.poses} poses per calibration; tool axis {np.round(study.tool_axis, 4).tolist()} in the "
-        "platform frame)",
+        f"(Δλ* = {1e3 * study.target_m:g} mm; {what}; "
+        f"{st.poses} {'circles' if st.instrument == 'ballbar' else 'poses'} per calibration"
+        + ("; a new plan per machine" if study.plans_per_machine else "")
+        + f"; tool axis {np.round(study.tool_axis, 4).tolist()} in the platform frame)",
+        "intervals: 95 % bootstrap over machines (2000 resamples; no failure at all: the bound "
+        "1 − 0.05^(1/K))",
         "",
     ]
     rows = [
@@ -250,7 +274,18 @@ def study_text(report: StudyReport, markdown: bool = False) -> str:
     for c in study.cases:
         rows += [_study_row(c.exact), _study_row(c.linear)]
     out += [_table(rows, markdown), ""]
-    rows = [["case", "rank", "condition", "O1", "GN iterations (mean, max)", "max |Δλ exact − linear| [µm]"]]
+    rows = [
+        [
+            "case",
+            "rank",
+            "condition",
+            "O1",
+            "GN iterations (mean, max)",
+            "max |Δλ exact − linear| [µm]",
+            "row gap exact − linear [µm]",
+            "machines left out (not converged)",
+        ]
+    ]
     for c in study.cases:
         rows.append(
             [
@@ -260,9 +295,50 @@ def study_text(report: StudyReport, markdown: bool = False) -> str:
                 f"{c.plan.ident.observability:.3g}",
                 f"{c.iterations.mean():.1f}, {c.iterations.max()}",
                 _um(c.linear_exact_difference_m),
+                _um(c.linear_gap_m) + ("" if c.linear_valid else " (!)"),
+                str(len(c.unconverged)),
             ]
         )
     out += [_table(rows, markdown), ""]
+    if not study.ideal_linear_valid:
+        out.append(f"warning: Eq. 25 rows: {LINEAR_WARNING} (gap beyond 5 % of Δλ*)")
+    for c in study.cases:
+        if not c.linear_valid:
+            out.append(
+                f"warning: '{c.case.label}': {LINEAR_WARNING} (the exact and linear mean/p95/p99 differ "
+                f"by {_um(c.linear_gap_m)} µm, beyond 5 % of Δλ* = {_um(0.05 * study.target_m)} µm)"
+            )
+        if c.unconverged:
+            names = ", ".join(f"#{k}" for k, _ in c.unconverged[:20]) + (
+                " …" if len(c.unconverged) > 20 else ""
+            )
+            out.append(
+                f"'{c.case.label}': {len(c.unconverged)} of {study.machines} machines left out of its rows, "
+                f"their identification did not converge ({names}; {c.unconverged[0][1]})"
+            )
+    spread = [c for c in study.cases if c.plan_spread]
+    if spread:
+        rows = [
+            [
+                "case (one plan per machine)",
+                "mean Δλ [µm]: 5 % / median / 95 % of plans",
+                "beyond Δλ* [%]: 5 % / median / 95 % of plans",
+                "worst plan: beyond [%]",
+            ]
+        ]
+        for c in spread:
+            m = np.array([x[0] for x in c.plan_spread])
+            b = np.array([x[1] for x in c.plan_spread])
+            qm, qb = np.nanquantile(m, (0.05, 0.5, 0.95)), np.nanquantile(b, (0.05, 0.5, 0.95))
+            rows.append(
+                [
+                    c.case.label,
+                    " / ".join(_um(x) for x in qm),
+                    " / ".join(f"{100 * x:.2f}" for x in qb),
+                    f"{100 * np.nanmax(b):.2f}",
+                ]
+            )
+        out += ["plan-to-plan spread (each machine calibrated by its own plan):", _table(rows, markdown), ""]
     if report.holdout_skipped:
         out.append(f"({report.holdout_skipped} random held-out draws were unreachable and left out)")
     out.append("stage times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report.timings_s.items()))
@@ -281,6 +357,7 @@ def _summary_json(s: ErrorSummary) -> dict[str, Any]:
         "max_dlambda_m": s.max_m,
         "beyond_target": f,
         "beyond_target_ci95": [lo, hi],
+        "machines": s.machines,
         "mean_tilt_rad": float(np.nanmean(s.tilt_rad)) if finite_tilt else None,
         "max_tilt_rad": float(np.nanmax(s.tilt_rad)) if finite_tilt else None,
         "mean_angle_rad": float(np.nanmean(s.angle_rad)) if finite_tilt else None,
@@ -293,6 +370,11 @@ def study_json(report: StudyReport) -> dict[str, Any]:
     s = report.study
     return {
         "machines": s.machines,
+        "instrument": report.settings.instrument,
+        "tracker_frame": report.settings.tracker_frame,
+        "plans_per_machine": s.plans_per_machine,
+        "intervals": "95 % bootstrap over machines",
+        "eq25_linear_model_valid": s.ideal_linear_valid,
         "holdout_poses": len(s.holdout_points_m),
         "target_m": s.target_m,
         "noise_m": report.settings.noise_m,
@@ -314,7 +396,13 @@ def study_json(report: StudyReport) -> dict[str, Any]:
                 "exact": _summary_json(c.exact),
                 "linear_prediction": _summary_json(c.linear),
                 "max_exact_linear_difference_m": c.linear_exact_difference_m,
+                "row_gap_exact_linear_m": c.linear_gap_m,
+                "linear_model_valid": c.linear_valid,
+                "warning": None if c.linear_valid else LINEAR_WARNING,
                 "gauss_newton_iterations_mean": float(c.iterations.mean()),
+                "unconverged_machines": [{"machine": k, "why": why} for k, why in c.unconverged],
+                "machines_in_rows": s.machines - len(c.unconverged),
+                "plan_spread": [{"mean_dlambda_m": a, "beyond_target": b} for a, b in c.plan_spread],
             }
             for c in s.cases
         ],
