@@ -1,0 +1,492 @@
+"""Inverse kinematics of a hybrid machine: the parallel module's closed chain, the tool chain on its platform.
+
+The unknowns are the module's task point P (3) and the actuated wrist joints (w = 0 or 2); the
+equations are the TCP position (3) and, with two wrist actuators, the tool axis across the target
+axis (2 rows: ``Q* a`` with ``Q*`` two unit rows orthogonal to the target axis ``a*``; the spin
+about the axis is free). Each evaluation solves the module at P with its own solver
+(:meth:`ClosedChain.inverse`, or :meth:`BatchChain.inverse` for many poses, warm-started by the
+tangent step ``q + ∂q/∂P ΔP``), then the tool chain's frame kinematics. The Jacobian is exact:
+the platform twist per unit ΔP is ``J_0 ∂q_0/∂P`` (limb 0's platform-frame Jacobian and the
+module's tangent), moved to the TCP by ``Ad(pMt⁻¹)``, beside the tool chain's frame Jacobian;
+Newton's method on it converges quadratically (docs/hybrid.md, "Inverse kinematics").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+import pkmtol.values as values
+from pkmtol.exceptions import (
+    InvalidRequestError,
+    JointLimitError,
+    KinematicsError,
+    SingularPoseError,
+    UnreachableTargetError,
+)
+from pkmtol.kinematics.batch import BatchChain
+from pkmtol.kinematics.closed_chain import SINGULAR_CONDITION, ClosedChain, Pose
+from pkmtol.kinematics.tool_chain import (
+    ToolKinematics,
+    across_many,
+    orthonormal_across,
+    tool_frames,
+    world_axes,
+)
+from pkmtol.model.mechanism import Mechanism
+from pkmtol.model.tool import TOOL, Tool
+
+#: Task residual at which the outer Newton stops [m, rad].
+TOLERANCE = 1e-12
+MAX_ITERATIONS = 30
+#: Largest Newton step on P [m] and on a wrist joint [rad or m] (keeps the assembly branch).
+STEP_LIMIT_M = 0.2
+STEP_LIMIT_JOINT = 0.6
+
+
+@dataclass(frozen=True, eq=False)
+class HybridPose:
+    """A solved pose of the whole machine (frame K, SI units).
+
+    Attributes:
+        module: The parallel module's closed-chain pose (its ``p_m`` is the task point P).
+        q_tool: Shape (nq_t,): the tool chain's joint values [rad or m].
+        oMt: The TCP placement in K (its z axis is the tool axis).
+        residual: Largest task residual at the solution [m, rad].
+        condition: Condition number of the task Jacobian at the solution.
+        twist_jacobian: Shape (6, 3 + w): the TCP twist ``[v; ω]`` (at the TCP, K's axes) per
+            unit change of P [m] and of each actuated wrist joint [rad or m].
+        tangent: Shape (N, 3): the module's ``∂q/∂P`` at its pose.
+    """
+
+    module: Pose
+    q_tool: np.ndarray
+    oMt: pin.SE3
+    residual: float
+    condition: float
+    twist_jacobian: np.ndarray
+    tangent: np.ndarray
+
+    @property
+    def tcp_m(self) -> np.ndarray:
+        """Shape (3,): the TCP position in K [m]."""
+        return np.asarray(self.oMt.translation, dtype=float).copy()
+
+    @property
+    def axis(self) -> np.ndarray:
+        """Shape (3,): the tool axis in K (unit, from the spindle towards the tool tip)."""
+        return np.asarray(self.oMt.rotation[:, 2], dtype=float).copy()
+
+    @property
+    def z(self) -> np.ndarray:
+        """Shape (3 + w,): the unknowns: P [m] and the actuated wrist joints [rad or m]."""
+        return np.concatenate([self.module.p_m, self.q_tool[list(self._act)]])
+
+    @property
+    def _act(self) -> tuple[int, ...]:
+        return tuple(range(self.twist_jacobian.shape[1] - 3))
+
+
+def task_rows(twist: np.ndarray, oMt: pin.SE3, target_m: np.ndarray, across: np.ndarray | None):
+    """Task residual and Jacobian at a TCP placement: ``([tcp − t*; Q* a], [J_v; −Q*[a]× J_ω])``.
+
+    Args:
+        twist: Shape (6, k): TCP twist columns (K's axes).
+        oMt: The TCP placement.
+        target_m: Shape (3,): TCP target [m].
+        across: Shape (2, 3): ``Q*`` for the target axis; None: the TCP position only.
+    """
+    r = oMt.translation - target_m
+    if across is None:
+        return r, twist[:3]
+    a = oMt.rotation[:, 2]
+    res = np.concatenate([r, across @ a])
+    jac = np.vstack([twist[:3], -across @ pin.skew(a) @ twist[3:]])
+    return res, jac
+
+
+class HybridChain:
+    """Solver of a hybrid machine's task (per pose and batched; not thread-safe).
+
+    Args:
+        mechanism: A mechanism with a tool chain (``mechanism.tool``).
+        chain: The module's per-pose solver to use (default: a new one); its models may be
+            perturbed.
+        tool_model: The tool chain's model to use (default: the nominal one).
+        check_limits: Check the tool chain's joint limits at every solution (the module's are
+            checked by its own solver).
+    """
+
+    def __init__(
+        self,
+        mechanism: Mechanism,
+        chain: ClosedChain | None = None,
+        tool_model: pin.Model | None = None,
+        check_limits: bool = True,
+    ) -> None:
+        values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism with a [tool] chain")
+        if mechanism.tool is None:
+            raise InvalidRequestError(
+                f"mechanism '{mechanism.name}' has no tool chain; add a [tool] table (docs/hybrid.md)"
+            )
+        self.mechanism = mechanism
+        self.tool: Tool = mechanism.tool
+        self.chain = chain or ClosedChain(mechanism)
+        self.batch = BatchChain(mechanism, chain=self.chain)
+        self.tool_model = tool_model if tool_model is not None else self.tool.model
+        self.tool_data = self.tool_model.createData()
+        self.actuated = list(self.tool.actuated)
+        self.rows = 3 + len(self.actuated)
+        self.check_limits = check_limits
+        self._lower = np.asarray(self.tool_model.lowerPositionLimit, dtype=float)
+        self._upper = np.asarray(self.tool_model.upperPositionLimit, dtype=float)
+        self._nq0 = mechanism.limbs[0].nq
+        self.kinematics = ToolKinematics(self.tool, self.tool_model)
+
+    # --- one pose -----------------------------------------------------------------------
+
+    def home(self) -> HybridPose:
+        """The machine at the module's refined home and the tool chain's ``home`` values."""
+        pose = self.chain.inverse(self._module_home_p())
+        return self._assemble(pose, self._tangent(pose), self.tool.home.copy())
+
+    def _module_home_p(self) -> np.ndarray:
+        q = self.chain.home()
+        oMp = self.chain.platform_placements(q)[0]
+        return np.asarray(oMp.act(self.chain.p_ref), dtype=float)
+
+    def evaluate(self, pose: Pose, q_tool: np.ndarray) -> HybridPose:
+        """The machine at a module pose and tool joints (residual and condition left at 0)."""
+        return self._assemble(pose, self._tangent(pose), np.asarray(q_tool, dtype=float))
+
+    def inverse(
+        self, tcp_m: np.ndarray, axis: np.ndarray | None = None, guess: HybridPose | None = None
+    ) -> HybridPose:
+        """The module pose and wrist joints that put the TCP at ``tcp_m`` with the tool along ``axis``.
+
+        Args:
+            tcp_m: Shape (3,): TCP target in K [m].
+            axis: Shape (3,): target tool axis in K (unit; two wrist actuators); None for a locked
+                wrist (the TCP position only).
+            guess: A solved pose to start from (default: :meth:`home`).
+
+        Raises:
+            UnreachableTargetError: no solution near the guess (the module's error when its
+                task point is out of reach).
+            JointLimitError: a tool joint beyond its URDF limits at the solution.
+            SingularPoseError: the task Jacobian is singular at the solution.
+        """
+        target = values.vector("tcp_m", tcp_m, 3)
+        across = self._across(axis)
+        cur = guess if guess is not None else self.home()
+        q_tool = cur.q_tool.copy()
+        for _ in range(MAX_ITERATIONS):
+            res, jac = task_rows(cur.twist_jacobian, cur.oMt, target, across)
+            size = float(np.max(np.abs(res)))
+            if size < TOLERANCE:
+                return self._finish(cur, jac, size, target)
+            step = _limited(np.linalg.lstsq(jac, -res, rcond=None)[0])
+            p_new = cur.module.p_m + step[:3]
+            q_tool = cur.q_tool.copy()
+            q_tool[self.actuated] += step[3:]
+            guess_q = cur.module.q_all + cur.tangent @ step[:3]
+            try:
+                pose = self.chain.inverse(p_new, guess_q)
+            except KinematicsError as err:
+                raise UnreachableTargetError(
+                    target, f"the module's task point P = {np.round(p_new, 6).tolist()} m fails: {err}"
+                ) from err
+            cur = self._assemble(pose, self._tangent(pose), q_tool)
+        raise UnreachableTargetError(
+            target, f"the TCP task does not converge in {MAX_ITERATIONS} iterations ({size:.2g} left)", TOOL
+        )
+
+    def forward(
+        self,
+        u_module: np.ndarray,
+        q_tool: np.ndarray,
+        module_guess: np.ndarray,
+        module_offsets: np.ndarray | None = None,
+        tool_offsets: np.ndarray | None = None,
+    ) -> tuple[Pose, pin.SE3]:
+        """The TCP placement for given commands (this solver's models, e.g. perturbed ones).
+
+        Args:
+            u_module: The module's actuator readings (in ``chain.actuated_idx`` order).
+            q_tool: Shape (nq_t,): the tool chain's commands (actuated) and set values (locked).
+            module_guess: Shape (N,): initial guess of the module's joints.
+            module_offsets: Shape (N,): the module's joint zero offsets (see
+                :meth:`ClosedChain.forward`).
+            tool_offsets: Shape (nq_t,): the tool chain's zero offsets (actual = command + δq).
+
+        Returns:
+            ``(module pose, oMt)``: the module's actual pose and the TCP placement in K.
+        """
+        pose = self.chain.forward(np.asarray(u_module, dtype=float), module_guess, module_offsets)
+        q = np.asarray(q_tool, dtype=float) + (0.0 if tool_offsets is None else np.asarray(tool_offsets))
+        pMt, _ = tool_frames(self.tool, self.tool_model, self.tool_data, q)
+        return pose, pose.oMp * pMt
+
+    def _finish(self, cur: HybridPose, jac: np.ndarray, size: float, target: np.ndarray) -> HybridPose:
+        s = np.linalg.svd(jac, compute_uv=False)
+        cond = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
+        if cond > SINGULAR_CONDITION:
+            raise SingularPoseError("the hybrid task Jacobian (module + wrist)", cond, target)
+        err = self.limit_violation(cur.q_tool, target)
+        if err is not None:
+            raise err
+        return HybridPose(cur.module, cur.q_tool, cur.oMt, size, cond, cur.twist_jacobian, cur.tangent)
+
+    def limit_violation(self, q_tool: np.ndarray, target: np.ndarray) -> JointLimitError | None:
+        """The error for the first tool joint outside its URDF limits, or None."""
+        if not self.check_limits:
+            return None
+        bad = np.flatnonzero((q_tool < self._lower - 1e-12) | (q_tool > self._upper + 1e-12))
+        if not bad.size:
+            return None
+        k = int(bad[0])
+        return JointLimitError(
+            target,
+            TOOL,
+            self.tool.joint_names[k],
+            float(q_tool[k]),
+            float(self._lower[k]),
+            float(self._upper[k]),
+        )
+
+    def _tangent(self, pose: Pose) -> np.ndarray:
+        """The module's ``∂q/∂P`` (N, 3) at a pose (the exact linear step of its own predictor)."""
+        if pose.tangent is not None:
+            return pose.tangent
+        q = pose.q_all
+        return np.column_stack([self.chain.predict(pose, pose.p_m + e) - q for e in np.eye(3)])
+
+    def _assemble(self, pose: Pose, tangent: np.ndarray, q_tool: np.ndarray) -> HybridPose:
+        m0 = self.chain.models[0]
+        d0 = self.chain.datas[0]
+        j0 = pin.computeFrameJacobian(m0, d0, pose.q[0], self.chain.fids[0], pin.LOCAL)
+        return self._assemble_from(pose, j0, tangent, q_tool)
+
+    def _assemble_from(
+        self, pose: Pose, j0: np.ndarray, tangent: np.ndarray, q_tool: np.ndarray
+    ) -> HybridPose:
+        pMt, jt = tool_frames(self.tool, self.tool_model, self.tool_data, q_tool)
+        oMt = pose.oMp * pMt
+        platform = j0 @ tangent[: self._nq0]  # (6, 3): platform twist (its frame) per unit ΔP
+        local = np.hstack([pMt.toActionMatrixInverse() @ platform, jt[:, self.actuated]])
+        twist = world_axes(oMt.rotation, local)
+        return HybridPose(pose, q_tool, oMt, 0.0, 0.0, twist, tangent)
+
+    def _across(self, axis: np.ndarray | None) -> np.ndarray | None:
+        if not self.actuated:
+            if axis is not None:
+                raise InvalidRequestError(
+                    "the wrist is locked (no actuated tool joint): the task is the TCP position; "
+                    "give no tool axis"
+                )
+            return None
+        if axis is None:
+            raise InvalidRequestError("a machine with two wrist actuators needs a target tool axis")
+        a = values.vector("axis", axis, 3)
+        n = float(np.linalg.norm(a))
+        if not n > 1e-12:
+            raise InvalidRequestError(f"the target tool axis must be a non-zero vector, got {a.tolist()}")
+        return orthonormal_across(a / n)
+
+    # --- many poses ---------------------------------------------------------------------
+
+    def inverse_many(
+        self, tcp_m: np.ndarray, axes: np.ndarray | None, guesses: list[HybridPose]
+    ) -> list[HybridPose | KinematicsError]:
+        """:meth:`inverse` of B targets together, the module solved by :meth:`BatchChain.inverse`.
+
+        The same Newton iterations as :meth:`inverse`, stacked over the targets (the tool chain by
+        :class:`~pkmtol.kinematics.tool_chain.ToolKinematics`, the 5 × 5 steps by one stacked
+        solve); a target leaves the batch when it converges.
+
+        Args:
+            tcp_m: Shape (B, 3): TCP targets [m].
+            axes: Shape (B, 3): target tool axes (None for a locked wrist).
+            guesses: B solved poses to start from (e.g. solved neighbours).
+
+        Returns:
+            Per target: its pose, or the error :meth:`inverse` raises for it.
+        """
+        targets = np.asarray(tcp_m, dtype=float).reshape(-1, 3)
+        b = len(targets)
+        if axes is None:
+            self._across(None)
+            across = None
+        else:
+            a = np.asarray(axes, dtype=float).reshape(b, 3)
+            if not self.actuated:
+                self._across(a[0])
+            across = across_many(a / np.linalg.norm(a, axis=1, keepdims=True))
+        st = _State.of(guesses)
+        out: list[HybridPose | KinematicsError | None] = [None] * b
+        active = np.arange(b)
+        act = self.actuated
+        for _ in range(MAX_ITERATIONS + 1):
+            res, jac = _task_rows_many(
+                st.twist, st.rot, st.pos, targets[active], None if across is None else across[active]
+            )
+            size = np.abs(res).max(axis=1)
+            done = size < TOLERANCE
+            for pos in np.flatnonzero(done):
+                k = int(active[pos])
+                try:
+                    out[k] = self._finish(st.pose(int(pos)), jac[pos], float(size[pos]), targets[k])
+                except KinematicsError as err:
+                    out[k] = err
+            keep = ~done
+            if not keep.any():
+                break
+            st, res, jac, active = st.take(keep), res[keep], jac[keep], active[keep]
+            step = _solve_many(jac, -res)
+            step = _limited_many(step)
+            p_new = st.p + step[:, :3]
+            qt_new = st.qt.copy()
+            qt_new[:, act] += step[:, 3:]
+            guess = st.qm + np.einsum("bnk,bk->bn", st.tangent, step[:, :3])
+            sols = self.batch.inverse(p_new, guess)
+            ok = sols.ok
+            for pos in np.flatnonzero(~ok):
+                k = int(active[pos])
+                out[k] = UnreachableTargetError(
+                    targets[k],
+                    f"the module's task point P = {np.round(p_new[pos], 6).tolist()} m fails: "
+                    f"{sols.errors[pos]}",
+                )
+            idx = np.flatnonzero(ok)
+            active = active[idx]
+            if not idx.size:
+                break
+            rt, pt, jt = self.kinematics.frames(qt_new[idx])
+            st = _State.from_solutions(sols, idx, qt_new[idx], rt, pt, jt, act, self._nq0)
+        for k in range(b):
+            if out[k] is None:
+                out[k] = UnreachableTargetError(
+                    targets[k], f"the TCP task does not converge in {MAX_ITERATIONS} iterations", TOOL
+                )
+        return [o for o in out if o is not None]
+
+
+@dataclass(frozen=True, eq=False)
+class _State:
+    """The stacked state of :meth:`HybridChain.inverse_many`: b poses, their TCPs and twist Jacobians."""
+
+    p: np.ndarray  # (b, 3) module task points
+    qm: np.ndarray  # (b, N) module joints
+    qt: np.ndarray  # (b, nt) tool joints
+    tangent: np.ndarray  # (b, N, 3)
+    rot_p: np.ndarray  # (b, 3, 3) platform
+    pos_p: np.ndarray  # (b, 3)
+    rot: np.ndarray  # (b, 3, 3) TCP
+    pos: np.ndarray  # (b, 3)
+    twist: np.ndarray  # (b, 6, 3 + w)
+    residual: np.ndarray  # (b,) module residual
+    condition: np.ndarray  # (b,) module condition bound
+    offsets: tuple[int, ...]
+
+    @staticmethod
+    def of(poses: list[HybridPose]) -> _State:
+        return _State(
+            p=np.array([h.module.p_m for h in poses]),
+            qm=np.array([h.module.q_all for h in poses]),
+            qt=np.array([h.q_tool for h in poses]),
+            tangent=np.array([h.tangent for h in poses]),
+            rot_p=np.array([h.module.oMp.rotation for h in poses]),
+            pos_p=np.array([h.module.oMp.translation for h in poses]),
+            rot=np.array([h.oMt.rotation for h in poses]),
+            pos=np.array([h.oMt.translation for h in poses]),
+            twist=np.array([h.twist_jacobian for h in poses]),
+            residual=np.array([h.module.residual for h in poses]),
+            condition=np.array([h.module.condition for h in poses]),
+            offsets=tuple(int(x) for x in np.cumsum([0] + [len(q) for q in poses[0].module.q])),
+        )
+
+    @staticmethod
+    def from_solutions(sols, idx, qt, rt, pt, jt, act, nq0) -> _State:  # noqa: ANN001 - internal
+        rp, tp = sols.rotation[idx], sols.translation[idx]
+        tangent = sols.system_inverse[idx][:, :, -3:]
+        plat = sols.jacobians[0][idx] @ tangent[:, :nq0]  # (b, 6, 3) platform twist (its frame) per ΔP
+        v, w = plat[:, :3], plat[:, 3:]
+        twist = np.empty((len(idx), 6, 3 + len(act)))
+        twist[:, :3, :3] = rp @ (v + np.cross(w, pt[:, :, None], axisa=1, axisb=1, axisc=1))
+        twist[:, 3:, :3] = rp @ w
+        rot = rp @ rt
+        twist[:, :3, 3:] = rot @ jt[:, :3][:, :, act]
+        twist[:, 3:, 3:] = rot @ jt[:, 3:][:, :, act]
+        return _State(
+            p=sols.p_m[idx],
+            qm=sols.q[idx],
+            qt=qt,
+            tangent=tangent,
+            rot_p=rp,
+            pos_p=tp,
+            rot=rot,
+            pos=tp + np.einsum("bij,bj->bi", rp, pt),
+            twist=twist,
+            residual=sols.residual[idx],
+            condition=sols.condition[idx],
+            offsets=tuple(int(x) for x in sols.limb_offsets),
+        )
+
+    def take(self, mask: np.ndarray) -> _State:
+        return _State(**{f: getattr(self, f)[mask] for f in _FIELDS}, offsets=self.offsets)
+
+    def pose(self, k: int) -> HybridPose:
+        o = self.offsets
+        module = Pose(
+            q=tuple(self.qm[k, a:c].copy() for a, c in zip(o[:-1], o[1:], strict=True)),
+            oMp=pin.SE3(self.rot_p[k].copy(), self.pos_p[k].copy()),
+            p_m=self.p[k].copy(),
+            residual=float(self.residual[k]),
+            condition=float(self.condition[k]),
+            tangent=self.tangent[k].copy(),
+        )
+        oMt = pin.SE3(self.rot[k].copy(), self.pos[k].copy())
+        return HybridPose(
+            module, self.qt[k].copy(), oMt, 0.0, 0.0, self.twist[k].copy(), self.tangent[k].copy()
+        )
+
+
+_FIELDS = ("p", "qm", "qt", "tangent", "rot_p", "pos_p", "rot", "pos", "twist", "residual", "condition")
+
+
+def _task_rows_many(twist, rot, pos, targets, across):  # noqa: ANN001, ANN202 - internal
+    """:func:`task_rows` stacked: residuals (b, rows) and Jacobians (b, rows, 3 + w)."""
+    r = pos - targets
+    if across is None:
+        return r, twist[:, :3]
+    a = rot[:, :, 2]
+    res = np.concatenate([r, np.einsum("bij,bj->bi", across, a)], axis=1)
+    axw = np.cross(a[:, :, None], twist[:, 3:], axisa=1, axisb=1, axisc=1)  # a × ω = −ω × a ... per column
+    jac = np.concatenate([twist[:, :3], -np.einsum("bij,bjk->bik", across, axw)], axis=1)
+    return res, jac
+
+
+def _solve_many(a: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Stacked square solves ``a x = rhs`` (least squares where a system is singular)."""
+    try:
+        return np.linalg.solve(a, rhs[:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:
+        return np.array([np.linalg.lstsq(m, r, rcond=None)[0] for m, r in zip(a, rhs, strict=True)])
+
+
+def _limited_many(step: np.ndarray) -> np.ndarray:
+    big = np.abs(step[:, :3]).max(axis=1) / STEP_LIMIT_M
+    if step.shape[1] > 3:
+        big = np.maximum(big, np.abs(step[:, 3:]).max(axis=1) / STEP_LIMIT_JOINT)
+    return step / np.maximum(big, 1.0)[:, None]
+
+
+def _limited(step: np.ndarray) -> np.ndarray:
+    """A Newton step scaled down to :data:`STEP_LIMIT_M` on P and :data:`STEP_LIMIT_JOINT` on the wrist."""
+    big = max(
+        float(np.max(np.abs(step[:3]))) / STEP_LIMIT_M,
+        float(np.max(np.abs(step[3:]), initial=0.0)) / STEP_LIMIT_JOINT,
+    )
+    return step / big if big > 1.0 else step
