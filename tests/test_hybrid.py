@@ -92,7 +92,8 @@ def test_inverse_kinematics_reaches_every_target_per_pose_and_batched(name) -> N
         assert np.abs(one.module.q_all - b.module.q_all).max() < 1e-9
         assert np.abs(one.q_tool - b.q_tool).max() < 1e-9
     worst = max(
-        max(np.abs(s.tcp_m - t).max(), np.abs(s.axis - a).max()) for s, t, a in zip(batched, tcp, axes, strict=True)
+        max(np.abs(s.tcp_m - t).max(), np.abs(s.axis - a).max())
+        for s, t, a in zip(batched, tcp, axes, strict=True)
     )
     assert worst < 1e-11
     assert max(s.condition for s in batched) < 100.0  # no singular pose (A stays away from its pole)
