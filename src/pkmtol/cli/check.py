@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.cli.common import EXIT_PROBLEMS, mm, show_progress
+from pkmtol.cli.common import EXIT_PROBLEMS, add_tool_options, apply_tool_options, mm, show_progress
 from pkmtol.kinematics.check import CheckReport, JointReport, check_mechanism
 from pkmtol.model.loader import load_mechanism
 
@@ -27,11 +27,14 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml (e.g. robots/r2rps_ups)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    report = check_mechanism(load_mechanism(args.robot), progress=show_progress(args.no_progress))
+    report = check_mechanism(
+        apply_tool_options(load_mechanism(args.robot), args), progress=show_progress(args.no_progress)
+    )
     print("\n".join(format_check(report)))
     return EXIT_PROBLEMS if report.problems else 0
 

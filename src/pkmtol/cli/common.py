@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import sys
 from collections.abc import Iterator, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -96,3 +98,56 @@ def executor_from(args: argparse.Namespace) -> Executor:
         ExecutorError: a bad worker count, or no scheduler at the ``--dask`` address.
     """
     return Executor(workers=args.workers, dask=args.dask).connect()
+
+
+def add_tool_options(parser: argparse.ArgumentParser) -> None:
+    """``--tool-length`` and ``--compensate-with``: a hybrid's tool and compensation (docs/hybrid.md)."""
+    parser.add_argument(
+        "--tool-length",
+        default=None,
+        metavar="LENGTH",
+        help="a hybrid machine: the tool length, spindle nose → TCP, with its unit (150mm); default "
+        "[tool] length",
+    )
+    parser.add_argument(
+        "--compensate-with",
+        choices=["machine", "module"],
+        default=None,
+        help="a hybrid machine: which actuators compensate — machine: the module's and the wrist's "
+        "together (default), module: the module's alone, the wrist's commands unchanged (the paper's "
+        "Eq. 25 carried to the TCP)",
+    )
+
+
+def apply_tool_options(mechanism: Any, args: argparse.Namespace) -> Any:
+    """The mechanism with ``--tool-length`` and ``--compensate-with`` applied (unchanged without them).
+
+    Raises:
+        InvalidArgumentError: a bad length, or a tool option on a mechanism without a [tool] chain.
+    """
+    length = getattr(args, "tool_length", None)
+    scope = getattr(args, "compensate_with", None)
+    if length is None and scope is None:
+        return mechanism
+    if mechanism.tool is None:
+        option = "--tool-length" if length is not None else "--compensate-with"
+        raise InvalidArgumentError(
+            option,
+            length or scope,
+            f"'{mechanism.name}' has no tool chain; add a [tool] table (docs/hybrid.md)",
+        )
+    tool = mechanism.tool
+    if length is not None:
+        try:
+            value = parse_length(length, "--tool-length")
+        except InvalidRequestError as err:
+            raise InvalidArgumentError(
+                "--tool-length", length, str(err).removeprefix("--tool-length: ")
+            ) from err
+        if value < 0:
+            raise InvalidArgumentError("--tool-length", length, "a tool length must be ≥ 0, e.g. 150mm")
+        tool = tool.with_length(value)
+    extra = dict(mechanism.extra)
+    if scope is not None:
+        extra["tool_scope"] = scope
+    return dataclasses.replace(mechanism, tool=tool, extra=extra)

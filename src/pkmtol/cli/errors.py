@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
-from pkmtol.cli.common import mm, show_progress
+from pkmtol.cli.common import add_tool_options, apply_tool_options, mm, show_progress
 from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
 from pkmtol.exceptions import OutputError
@@ -42,11 +42,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     add_plan_options(p)
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = load_mechanism(args.robot)
+    mech = apply_tool_options(load_mechanism(args.robot), args)
     if args.json is not None and not (args.json.parent or Path(".")).is_dir():
         raise OutputError(args.json, f"folder {args.json.parent} does not exist")
     settings = plan_settings(mech, args) if args.compensation == "calibrated" else None

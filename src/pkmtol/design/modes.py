@@ -22,9 +22,10 @@ from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps, mode_maps
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep, sweep
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep
 from pkmtol.error_model.table import ErrorTable, error_table
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -148,9 +149,9 @@ def mode_error_table(
     """
     if mode == "ideal":
         return error_table(mechanism, kind, progress=progress)
-    pset = parameter_set(mechanism, kind or default_set(mechanism))
+    pset = machine_parameter_set(mechanism, kind)
     chain = ClosedChain(mechanism)
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=progress)
+    grid = grid_sweep(mechanism, pset, chain, progress=progress)
     classes = grid.classify()
     setup = mode_setup(mechanism, pset, grid, classes, mode, chain, settings)
     cols = setup.columns

@@ -20,7 +20,7 @@ import pinocchio as pin
 
 import pkmtol.values as values
 from pkmtol.exceptions import UnknownJointError, URDFError
-from pkmtol.model.limb import frame_id, joint_kind
+from pkmtol.model.limb import Limb, frame_id, joint_kind
 
 #: Name of the TCP frame pkmtol adds to the tool chain's model.
 TCP_FRAME = "tcp"
@@ -78,6 +78,23 @@ class Tool:
     def nose_name(self) -> str:
         """Name of the spindle-nose frame."""
         return str(self.model.frames[self.nose_frame].name)
+
+    def as_limb(self) -> Limb:
+        """The chain as a :class:`Limb` (platform → TCP): the same raw-error layout, for limb readers.
+
+        Its "platform frame" is the TCP frame and its attachment the TCP frame's placement
+        (``tool.tcp``), so a tool parameter's raw errors index it as a limb's do.
+        """
+        return Limb(
+            name=TOOL,
+            model=self.model,
+            platform_frame=self.tcp_frame,
+            actuated=self.actuated,
+            home=self.home,
+            urdf_path=self.urdf_path,
+            attach_name=TCP_FRAME,
+            visual_model=self.visual_model,
+        )
 
     def with_length(self, length_m: float) -> Tool:
         """The same chain with another tool length [m] (``--tool-length``)."""
