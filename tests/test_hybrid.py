@@ -224,3 +224,43 @@ def test_locked_wrist_is_a_three_row_task(tmp_path) -> None:
     pose = hc.inverse(tcp[5])
     assert np.abs(pose.tcp_m - tcp[5]).max() < 1e-11
     assert np.allclose(np.degrees(pose.q_tool), [90.0, 45.0])
+
+
+def test_decoupled_and_general_inverse_kinematics_agree(seed) -> None:
+    """The seed's wrist meets at P (one module solve a pose); the general Newton finds the same poses."""
+    fast = HybridChain(seed)
+    assert fast.wrist_offset_m == pytest.approx(0.27, abs=1e-12)  # A axis → nose 0.12 m + tool 0.15 m
+    general = HybridChain(seed)
+    general.wrist_offset_m = None
+    tcp, axes = tool_task_grid(seed)
+    idx = np.arange(0, len(tcp), 9)
+    a = hybrid_continuation(fast, tcp[idx], axes[idx])
+    b = hybrid_continuation(general, tcp[idx], axes[idx])
+    for x, y in zip(a, b, strict=True):
+        assert np.abs(x.module.q_all - y.module.q_all).max() < 1e-9
+        assert np.abs(x.q_tool - y.q_tool).max() < 1e-9
+    one = fast.inverse(tcp[40], axes[40], a[0])
+    assert np.abs(one.tcp_m - tcp[40]).max() < 1e-11 and np.abs(one.axis - axes[40]).max() < 1e-11
+
+
+def test_a_wrist_with_offsets_takes_the_general_newton(tmp_path) -> None:
+    """A spindle 20 mm off the A axis: the TCP is no longer on a line through P, so no decoupling."""
+
+    def offset(text: str) -> str:
+        return text
+
+    folder = _variant(tmp_path, offset)
+    urdf = (folder / "wrist.urdf").read_text()
+    (folder / "wrist.urdf").write_text(
+        urdf.replace('<origin xyz="0 0 0.12" rpy="0 0 0" />', '<origin xyz="0.02 0 0.12" rpy="0 0 0" />')
+    )
+    mech = load_mechanism(folder)
+    hc = HybridChain(mech)
+    assert hc.wrist_offset_m is None
+    tcp, axes = tool_task_grid(mech)
+    idx = np.arange(0, len(tcp), 13)
+    sols = hybrid_continuation(hc, tcp[idx], axes[idx])
+    for s, t, a in zip(sols, tcp[idx], axes[idx], strict=True):
+        assert np.abs(s.tcp_m - t).max() < 1e-11 and np.abs(s.axis - a).max() < 1e-11
+    one = hc.inverse(tcp[idx][3], axes[idx][3], sols[0])
+    assert np.abs(one.q_tool - sols[3].q_tool).max() < 1e-9

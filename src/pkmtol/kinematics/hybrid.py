@@ -44,6 +44,8 @@ MAX_ITERATIONS = 30
 #: Largest Newton step on P [m] and on a wrist joint [rad or m] (keeps the assembly branch).
 STEP_LIMIT_M = 0.2
 STEP_LIMIT_JOINT = 0.6
+#: Quasi-Newton steps of the rigid predictor (:meth:`HybridChain._predict_many`).
+PREDICTOR_ITERATIONS = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,6 +146,7 @@ class HybridChain:
         self._upper = np.asarray(self.tool_model.upperPositionLimit, dtype=float)
         self._nq0 = mechanism.limbs[0].nq
         self.kinematics = ToolKinematics(self.tool, self.tool_model)
+        self.wrist_offset_m = self._decoupling()
 
     # --- one pose -----------------------------------------------------------------------
 
@@ -182,6 +185,21 @@ class HybridChain:
         across = self._across(axis)
         cur = guess if guess is not None else self.home()
         q_tool = cur.q_tool.copy()
+        if self.wrist_offset_m is not None and across is not None:  # a decoupled wrist: P from the TCP
+            p_w = target - self.wrist_offset_m * np.asarray(axis, dtype=float) / np.linalg.norm(
+                np.asarray(axis)
+            )
+            try:
+                pose = self.chain.inverse(p_w, cur.module.q_all + cur.tangent @ (p_w - cur.module.p_m))
+            except KinematicsError as err:
+                raise UnreachableTargetError(
+                    target, f"the module's task point P = {np.round(p_w, 6).tolist()} m fails: {err}"
+                ) from err
+            q_tool = cur.q_tool.copy()
+            q_tool[self.actuated] = self._wrist_many(pose.oMp.rotation[None], across[None], cur.q_tool[None])[
+                0
+            ]
+            cur = self._assemble(pose, self._tangent(pose), q_tool)
         for _ in range(MAX_ITERATIONS):
             res, jac = task_rows(cur.twist_jacobian, cur.oMt, target, across)
             size = float(np.max(np.abs(res)))
@@ -238,6 +256,112 @@ class HybridChain:
         if err is not None:
             raise err
         return HybridPose(cur.module, cur.q_tool, cur.oMt, size, cond, cur.twist_jacobian, cur.tangent)
+
+    def _decoupling(self) -> float | None:
+        """``d`` when the tool axis passes through P, ``d`` before the TCP, at every wrist position.
+
+        That is a wrist whose axes meet at P with the TCP on the spindle axis (else None). Then
+        the module's task point is ``P = t* − d a*`` for a target (t*, a*), independent of the
+        wrist joints: one module solve and a wrist-only solve reach it (kinematic decoupling, as
+        for a spherical wrist).
+        """
+        if len(self.actuated) != 2:
+            return None
+        rng = np.random.default_rng(0)
+        lo = np.where(np.isfinite(self._lower), self._lower, -np.pi)
+        hi = np.where(np.isfinite(self._upper), self._upper, np.pi)
+        q = rng.uniform(lo, hi, (8, self.tool.nq))
+        q[:, list(self.tool.locked)] = self.tool.home[list(self.tool.locked)]
+        rot, pos, _ = self.kinematics.frames(q)
+        r = pos - self.chain.p_ref
+        a = rot[:, :, 2]
+        along = (r * a).sum(axis=1)
+        across = np.linalg.norm(r - along[:, None] * a, axis=1)
+        if across.max() > 1e-12 or np.ptp(along) > 1e-12 or abs(along[0]) < 1e-9:
+            return None
+        return float(along.mean())
+
+    def _wrist_many(self, rot_p: np.ndarray, across: np.ndarray, q_tool: np.ndarray) -> np.ndarray:
+        """The actuated wrist joints (b, 2) that turn the tool axis onto the targets, platforms fixed.
+
+        Newton's method on ``Q* (R_p R_t(q) e_z) = 0`` (tool chain only), from ``q_tool`` (b, nq_t).
+        """
+        act = self.actuated
+        q = np.array(q_tool, dtype=float)
+        for _ in range(MAX_ITERATIONS):
+            rt, _, jt = self.kinematics.frames(q)
+            rot = rot_p @ rt
+            a = rot[:, :, 2]
+            res = np.einsum("bij,bj->bi", across, a)
+            if np.abs(res).max() < 1e-15:
+                break
+            w = rot @ jt[:, 3:][:, :, act]  # (b, 3, 2): the axis's angular velocity per joint (K)
+            jac = -np.einsum("bij,bjk->bik", across, np.cross(a[:, :, None], w, axisa=1, axisb=1, axisc=1))
+            step = _solve_many(jac, -res)
+            big = np.abs(step).max(axis=1) / STEP_LIMIT_JOINT
+            q[:, act] += step / np.maximum(big, 1.0)[:, None]
+        return q[:, act]
+
+    def _predict_many(
+        self,
+        st: _State,
+        targets: np.ndarray,
+        across: np.ndarray | None,
+        iterations: int = PREDICTOR_ITERATIONS,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """First guesses of P and the tool joints for new targets, off the solved poses ``st``.
+
+        The module's platform is moved rigidly and to first order in ΔP (O' by its velocity, the
+        orientation by ``exp3`` of its angular velocity per ΔP, both from the module's tangent), the
+        tool chain exactly; this surrogate is solved by a few quasi-Newton steps (no module
+        solve). Against the plain tangent step, it keeps the large second-order terms of the lever
+        from O' to the TCP turning with the platform and the wrist.
+        """
+        act = self.actuated
+        l0 = st.pos - st.pos_p  # O' → TCP (K)
+        w_per_p = st.twist[:, 3:, :3]  # (b, 3, 3) platform angular velocity per ΔP (K)
+        v_per_p = st.twist[:, :3, :3] + np.cross(l0[:, :, None], w_per_p, axisa=1, axisb=1, axisc=1)
+        dp = np.zeros((len(st.p), 3))
+        qt = st.qt.copy()
+        for _ in range(iterations):
+            theta = np.einsum("bij,bj->bi", w_per_p, dp)
+            rp = _exp3_many(theta) @ st.rot_p
+            op = st.pos_p + np.einsum("bij,bj->bi", v_per_p, dp)
+            rt, pt, jt = self.kinematics.frames(qt)
+            rot = rp @ rt
+            pos = op + np.einsum("bij,bj->bi", rp, pt)
+            lever = pos - op
+            twist = np.empty_like(st.twist)
+            twist[:, :3, :3] = v_per_p - np.cross(lever[:, :, None], w_per_p, axisa=1, axisb=1, axisc=1)
+            twist[:, 3:, :3] = w_per_p
+            twist[:, :3, 3:] = rot @ jt[:, :3][:, :, act]
+            twist[:, 3:, 3:] = rot @ jt[:, 3:][:, :, act]
+            res, jac = _task_rows_many(twist, rot, pos, targets, across)
+            step = _limited_many(_solve_many(jac, -res))
+            dp += step[:, :3]
+            qt[:, act] += step[:, 3:]
+            if np.abs(step).max() < 1e-12:
+                break
+        return st.p + dp, qt
+
+    def _finish_many(self, st, jac, size, done, active, targets, out) -> None:  # noqa: ANN001 - internal
+        """:meth:`_finish` of the converged rows ``done`` of a batch (one stacked SVD), into ``out``."""
+        rows = np.flatnonzero(done)
+        sv = np.linalg.svd(jac[rows], compute_uv=False)
+        with np.errstate(divide="ignore"):
+            cond = np.where(sv[:, -1] > 0, sv[:, 0] / sv[:, -1], np.inf)
+        qt = st.qt[rows]
+        outside = ((qt < self._lower - 1e-12) | (qt > self._upper + 1e-12)).any(axis=1) & self.check_limits
+        for r, pos in enumerate(rows):
+            k = int(active[pos])
+            if cond[r] > SINGULAR_CONDITION:
+                out[k] = SingularPoseError(
+                    "the hybrid task Jacobian (module + wrist)", float(cond[r]), targets[k]
+                )
+            elif outside[r]:
+                out[k] = self.limit_violation(qt[r], targets[k])
+            else:
+                out[k] = st.pose(int(pos), float(size[pos]), float(cond[r]))
 
     def limit_violation(self, q_tool: np.ndarray, target: np.ndarray) -> JointLimitError | None:
         """The error for the first tool joint outside its URDF limits, or None."""
@@ -328,27 +452,47 @@ class HybridChain:
         out: list[HybridPose | KinematicsError | None] = [None] * b
         active = np.arange(b)
         act = self.actuated
+        first = True
+        if self.wrist_offset_m is not None and across is not None:  # a decoupled wrist: P from the TCP
+            a_unit = np.asarray(axes, dtype=float).reshape(b, 3)
+            p_w = targets - self.wrist_offset_m * a_unit / np.linalg.norm(a_unit, axis=1, keepdims=True)
+            guess = st.qm + np.einsum("bnk,bk->bn", st.tangent, p_w - st.p)
+            sols = self.batch.inverse(p_w, guess)
+            for pos in np.flatnonzero(~sols.ok):
+                out[pos] = UnreachableTargetError(
+                    targets[pos],
+                    f"the module's task point P = {np.round(p_w[pos], 6).tolist()} m fails: "
+                    f"{sols.errors[pos]}",
+                )
+            idx = np.flatnonzero(sols.ok)
+            qt = st.qt[idx].copy()
+            qt[:, act] = self._wrist_many(sols.rotation[idx], across[idx], qt)
+            rt, pt, jt = self.kinematics.frames(qt)
+            st = _State.from_solutions(sols, idx, qt, rt, pt, jt, act, self._nq0)
+            active, first = idx, False
         for _ in range(MAX_ITERATIONS + 1):
             res, jac = _task_rows_many(
                 st.twist, st.rot, st.pos, targets[active], None if across is None else across[active]
             )
             size = np.abs(res).max(axis=1)
             done = size < TOLERANCE
-            for pos in np.flatnonzero(done):
-                k = int(active[pos])
-                try:
-                    out[k] = self._finish(st.pose(int(pos)), jac[pos], float(size[pos]), targets[k])
-                except KinematicsError as err:
-                    out[k] = err
+            if done.any():
+                self._finish_many(st, jac, size, done, active, targets, out)
             keep = ~done
             if not keep.any():
                 break
             st, res, jac, active = st.take(keep), res[keep], jac[keep], active[keep]
-            step = _solve_many(jac, -res)
-            step = _limited_many(step)
-            p_new = st.p + step[:, :3]
-            qt_new = st.qt.copy()
-            qt_new[:, act] += step[:, 3:]
+            if first:  # from the guesses: the rigid predictor (the wrist and the lever exact)
+                p_new, qt_new = self._predict_many(
+                    st, targets[active], None if across is None else across[active]
+                )
+                step = np.hstack([p_new - st.p, qt_new[:, act] - st.qt[:, act]])
+                first = False
+            else:
+                step = _limited_many(_solve_many(jac, -res))
+                p_new = st.p + step[:, :3]
+                qt_new = st.qt.copy()
+                qt_new[:, act] += step[:, 3:]
             guess = st.qm + np.einsum("bnk,bk->bn", st.tangent, step[:, :3])
             sols = self.batch.inverse(p_new, guess)
             ok = sols.ok
@@ -437,20 +581,19 @@ class _State:
     def take(self, mask: np.ndarray) -> _State:
         return _State(**{f: getattr(self, f)[mask] for f in _FIELDS}, offsets=self.offsets)
 
-    def pose(self, k: int) -> HybridPose:
+    def pose(self, k: int, residual: float = 0.0, condition: float = 0.0) -> HybridPose:
         o = self.offsets
+        qk = self.qm[k]
         module = Pose(
-            q=tuple(self.qm[k, a:c].copy() for a, c in zip(o[:-1], o[1:], strict=True)),
-            oMp=pin.SE3(self.rot_p[k].copy(), self.pos_p[k].copy()),
-            p_m=self.p[k].copy(),
+            q=tuple(qk[a:c] for a, c in zip(o[:-1], o[1:], strict=True)),
+            oMp=pin.SE3(self.rot_p[k], self.pos_p[k]),
+            p_m=self.p[k],
             residual=float(self.residual[k]),
             condition=float(self.condition[k]),
-            tangent=self.tangent[k].copy(),
+            tangent=self.tangent[k],
         )
-        oMt = pin.SE3(self.rot[k].copy(), self.pos[k].copy())
-        return HybridPose(
-            module, self.qt[k].copy(), oMt, 0.0, 0.0, self.twist[k].copy(), self.tangent[k].copy()
-        )
+        oMt = pin.SE3(self.rot[k], self.pos[k])
+        return HybridPose(module, self.qt[k], oMt, residual, condition, self.twist[k], self.tangent[k])
 
 
 _FIELDS = ("p", "qm", "qt", "tangent", "rot_p", "pos_p", "rot", "pos", "twist", "residual", "condition")
@@ -466,6 +609,18 @@ def _task_rows_many(twist, rot, pos, targets, across):  # noqa: ANN001, ANN202 -
     axw = np.cross(a[:, :, None], twist[:, 3:], axisa=1, axisb=1, axisc=1)  # a × ω = −ω × a ... per column
     jac = np.concatenate([twist[:, :3], -np.einsum("bij,bjk->bik", across, axw)], axis=1)
     return res, jac
+
+
+def _exp3_many(theta: np.ndarray) -> np.ndarray:
+    """Rotation matrices (b, 3, 3) of rotation vectors (b, 3) [rad] (Rodrigues)."""
+    angle = np.sqrt((theta * theta).sum(axis=1))
+    k = np.zeros((len(theta), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -theta[:, 2], theta[:, 1], -theta[:, 0]
+    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = theta[:, 2], -theta[:, 1], theta[:, 0]
+    small = angle < 1e-8
+    a = np.where(small, 1.0 - angle**2 / 6, np.sin(angle) / np.where(small, 1.0, angle))
+    b = np.where(small, 0.5 - angle**2 / 24, (1.0 - np.cos(angle)) / np.where(small, 1.0, angle) ** 2)
+    return np.eye(3) + a[:, None, None] * k + b[:, None, None] * (k @ k)
 
 
 def _solve_many(a: np.ndarray, rhs: np.ndarray) -> np.ndarray:

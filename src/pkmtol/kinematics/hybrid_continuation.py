@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics.hybrid import HybridChain, HybridPose
@@ -73,12 +74,11 @@ def hybrid_continuation(
         return [o for o in out if o is not None]
     while todo.any():
         if fresh:
-            d = np.linalg.norm(coords[:, None, :] - coords[None, fresh, :], axis=2)
-            best = d.argmin(axis=1)
-            dist = d[np.arange(m), best]
-            closer = dist < near_d
-            near_i[closer] = np.asarray(fresh)[best[closer]]
-            near_d[closer] = dist[closer]
+            dist, best = cKDTree(coords[fresh]).query(coords[todo])
+            rows = np.flatnonzero(todo)
+            closer = dist < near_d[rows]
+            near_i[rows[closer]] = np.asarray(fresh)[best[closer]]
+            near_d[rows[closer]] = dist[closer]
         cand = np.flatnonzero(todo & (near_i >= 0))
         if not cand.size:  # the rest have no solved neighbour: from the start pose
             cand = np.flatnonzero(todo)
@@ -104,9 +104,5 @@ def _spacing(coords: np.ndarray) -> float:
     """The largest distance from a target to its nearest other target (task metric) [m]."""
     if len(coords) < 2:
         return 0.0
-    worst = 0.0
-    for s in range(0, len(coords), CHUNK):
-        d = np.linalg.norm(coords[s : s + CHUNK, None, :] - coords[None], axis=2)
-        d[np.arange(d.shape[0]), np.arange(s, s + d.shape[0])] = np.inf
-        worst = max(worst, float(d.min(axis=1).max()))
-    return worst
+    dist, _ = cKDTree(coords).query(coords, k=2)
+    return float(dist[:, 1].max())
