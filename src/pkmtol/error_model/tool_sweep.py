@@ -18,7 +18,7 @@ from pkmtol.error_model.separation import separate_many
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.tool_chain import HybridParameterSet, ToolSeparation, task_targets, tool_separation
 from pkmtol.exceptions import InvalidRequestError, KinematicsError
-from pkmtol.kinematics.hybrid import HybridChain, HybridPose
+from pkmtol.kinematics.hybrid import HybridChain, HybridPose, task_grid
 from pkmtol.kinematics.hybrid_continuation import hybrid_continuation
 from pkmtol.model.mechanism import Mechanism
 
@@ -42,17 +42,8 @@ class ToolSweep(Sweep):
 
 
 def tool_task_grid(mechanism: Mechanism) -> tuple[np.ndarray, np.ndarray | None]:
-    """The task grid: every TCP point of ``task_space`` with every tool axis of the cone.
-
-    Returns:
-        ``(tcp (m, 3) [m], axes (m, 3) or None)``: point-major (all axes of point 0, then of
-        point 1, …); None for a locked wrist.
-    """
-    points = mechanism.task_space.grid()
-    if mechanism.tool_directions is None:
-        return points, None
-    dirs = mechanism.tool_directions.grid()
-    return np.repeat(points, len(dirs), axis=0), np.tile(dirs, (len(points), 1))
+    """The task grid: every TCP point with every tool axis (:func:`pkmtol.kinematics.hybrid.task_grid`)."""
+    return task_grid(mechanism)
 
 
 def tool_task_sample(

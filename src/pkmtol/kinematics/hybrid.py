@@ -645,3 +645,17 @@ def _limited(step: np.ndarray) -> np.ndarray:
         float(np.max(np.abs(step[3:]), initial=0.0)) / STEP_LIMIT_JOINT,
     )
     return step / big if big > 1.0 else step
+
+
+def task_grid(mechanism: Mechanism) -> tuple[np.ndarray, np.ndarray | None]:
+    """A hybrid's task grid: every TCP point of ``task_space`` with every tool axis of the cone.
+
+    Returns:
+        ``(tcp (m, 3) [m], axes (m, 3) or None)``: point-major (all axes of point 0, then of
+        point 1, …); None for a locked wrist.
+    """
+    points = mechanism.task_space.grid()
+    if mechanism.tool_directions is None:
+        return points, None
+    dirs = mechanism.tool_directions.grid()
+    return np.repeat(points, len(dirs), axis=0), np.tile(dirs, (len(points), 1))
