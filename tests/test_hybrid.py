@@ -148,7 +148,7 @@ def test_classes_of_the_seed_hybrid(seed) -> None:
     # the module's own uncompensatable errors (Table IV: limb 4's 14) stay so under its own split
     assert module[:n0].count("uncompensatable") == 14
     assert module.count("absorbed") == machine.count("absorbed")
-    assert machine[ps.names.index("tool.tcp.rz")] == "absorbed"  # the spin about the tool axis
+    assert machine[ps.names.index("wrist.δθ_e")] == "absorbed"  # the spin about the tool axis
 
 
 def _variant(tmp_path: Path, edit) -> Path:
@@ -246,14 +246,16 @@ def test_decoupled_and_general_inverse_kinematics_agree(seed) -> None:
 def test_a_wrist_with_offsets_takes_the_general_newton(tmp_path) -> None:
     """A spindle 20 mm off the A axis: the TCP is no longer on a line through P, so no decoupling."""
 
-    def offset(text: str) -> str:
-        return text
+    def offset(text: str) -> str:  # the URDF is edited, so it is no longer its [tool.dh] table's
+        start = text.index("[tool.dh]")
+        end = text.index("limits = [[-180.0, 180.0], [-100.0, 100.0]]", start)
+        return text[:start] + text[text.index("\n", end) :]
 
     folder = _variant(tmp_path, offset)
     urdf = (folder / "wrist.urdf").read_text()
-    (folder / "wrist.urdf").write_text(
-        urdf.replace('<origin xyz="0 0 0.12" rpy="0 0 0" />', '<origin xyz="0.02 0 0.12" rpy="0 0 0" />')
-    )
+    moved = urdf.replace('<origin xyz="0 0.12 0"', '<origin xyz="0.02 0.12 0"')
+    assert moved != urdf
+    (folder / "wrist.urdf").write_text(moved)
     mech = load_mechanism(folder)
     hc = HybridChain(mech)
     assert hc.wrist_offset_m is None
@@ -264,3 +266,39 @@ def test_a_wrist_with_offsets_takes_the_general_newton(tmp_path) -> None:
         assert np.abs(s.tcp_m - t).max() < 1e-11 and np.abs(s.axis - a).max() < 1e-11
     one = hc.inverse(tcp[idx][3], axes[idx][3], sols[0])
     assert np.abs(one.q_tool - sols[3].q_tool).max() < 1e-9
+
+
+def test_wrist_dh_columns_match_finite_differences_of_its_table(seed) -> None:
+    """The wrist's D–H parameters (``[tool.dh]``) are the table's own: each column against the table
+    perturbed by 1e-7 and its forward kinematics (the TCP ``length`` beyond the nose)."""
+    from pkmtol.model.dh import DHTable, forward
+
+    ps = hybrid_parameter_set(seed, "dh")
+    tool, t = seed.tool, seed.tool.dh
+    q = np.array([0.4, 0.9])
+    cols = tool_regressor(tool, tool.model, tool.model.createData(), q) @ ps.tool_selection
+    tcp = pin.SE3(np.eye(3), np.array([0.0, 0.0, tool.length_m]))
+    x0 = forward(t, q) * tcp
+    h, k = 1e-7, 0
+    for j in range(len(t.links)):
+        for c in range(4):
+            links = t.links.copy()
+            links[j, c] += h
+            x = forward(DHTable(links, t.end, t.joint_types, t.joint_names, t.limits), q) * tcp
+            assert np.abs(pin.log6(x0.actInv(x)).vector / h - cols[:, k]).max() < 1e-6, ps.names[
+                ps.tool_slice
+            ][k]
+            k += 1
+    for e in range(2):
+        end = list(t.end)
+        end[e] += h
+        x = forward(DHTable(t.links, (end[0], end[1]), t.joint_types, t.joint_names, t.limits), q) * tcp
+        assert np.abs(pin.log6(x0.actInv(x)).vector / h - cols[:, k]).max() < 1e-6
+        k += 1
+    assert ps.names[ps.tool_slice][k:] == [
+        "tool.tcp.dx",
+        "tool.tcp.dy",
+        "tool.tcp.dz",
+        "tool.tcp.rx",
+        "tool.tcp.ry",
+    ]

@@ -38,6 +38,7 @@ from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.closed_chain import Pose
 from pkmtol.kinematics.hybrid import HybridPose
 from pkmtol.kinematics.tool_chain import orthonormal_across, tool_regressor, world_axes
+from pkmtol.model.dh import dh_error_directions
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.model.tool import Tool
 
@@ -96,6 +97,18 @@ def hybrid_parameter_set(mechanism: Mechanism, kind: str = "urdf") -> HybridPara
     """
     tool = _tool(mechanism)
     base = parameter_set(mechanism, kind)
+    if kind == "dh" and tool.dh is not None:
+        dh_params, selection = _tool_dh(tool, len(mechanism.limbs))
+        n0 = len(base)
+        return HybridParameterSet(
+            kind=base.kind,
+            parameters=base.parameters + tuple(dh_params),
+            selections=base.selections,
+            slices=base.slices,
+            tool_slice=slice(n0, n0 + len(dh_params)),
+            tool_selection=selection,
+            module_count=n0,
+        )
     limb = len(mechanism.limbs)
     params: list[ErrorParameter] = []
     for jname in tool.joint_names:
@@ -120,6 +133,47 @@ def hybrid_parameter_set(mechanism: Mechanism, kind: str = "urdf") -> HybridPara
         tool_selection=np.eye(len(params)),
         module_count=n0,
     )
+
+
+def _tool_dh(tool: Tool, limb: int) -> tuple[list[ErrorParameter], np.ndarray]:
+    """The wrist's D–H parameters (``[tool.dh]``), then the tool's own at the TCP.
+
+    Per link ``j`` of the wrist ``wrist.δθ_j, δd_j, δa_j, δφ_j`` (and ``wrist.δd_e, δθ_e`` for the
+    spindle nose), the joint variables' zero offsets ``wrist.<joint>.offset`` (as the paper's
+    ξ), then the tool in the spindle: ``tool.tcp.dx, dy`` (run-out), ``dz`` (length), ``rx, ry``
+    (tilt) at the TCP. The nose's errors reach the TCP frame moved by ``Ad(Tz(L)⁻¹)``.
+    """
+    assert tool.dh is not None
+    nq = tool.nq
+    n_raw = 6 * (nq + 1) + nq
+    to_tcp = pin.SE3(np.eye(3), np.array([0.0, 0.0, tool.length_m])).inverse().toActionMatrix()
+    params: list[ErrorParameter] = []
+    cols: list[np.ndarray] = []
+    for j, link in enumerate(dh_error_directions(tool.dh)):
+        for symbol, origin, c in link:
+            col = np.zeros(n_raw)
+            joint = j - 1
+            kind = tool.dh.joint_types[joint] if joint >= 0 else ""
+            if joint >= 0 and ((symbol == "θ" and kind == "R") or (symbol == "d" and kind == "P")):
+                col[6 * (nq + 1) + joint] = 1.0  # the joint's zero offset
+                name = f"wrist.{tool.joint_names[joint]}.offset"
+                params.append(
+                    ErrorParameter(name, limb, "rad" if kind == "R" else "m", joint in tool.actuated)
+                )
+            else:
+                col[6 * origin : 6 * origin + 6] = to_tcp @ c if origin == nq else c
+                sym = symbol.removesuffix("_e")
+                idx = "e" if symbol.endswith("_e") else str(j + 1)
+                params.append(
+                    ErrorParameter(f"wrist.δ{sym}_{idx}", limb, "rad" if sym in ("θ", "φ") else "m")
+                )
+            cols.append(col)
+    for k, comp in enumerate(("dx", "dy", "dz", "rx", "ry")):
+        col = np.zeros(n_raw)
+        col[6 * nq + k] = 1.0
+        params.append(ErrorParameter(f"tool.tcp.{comp}", limb, "m" if k < 3 else "rad"))
+        cols.append(col)
+    return params, np.column_stack(cols)
 
 
 def task_targets(mechanism: Mechanism) -> tuple[float, float]:

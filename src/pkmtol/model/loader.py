@@ -222,7 +222,9 @@ def _from_doc(
     if kind != "tool":
         return mech
     # [tool]: the serial chain on the platform; the task is its TCP (docs/hybrid.md)
-    tool = read_tool(r, folder, platform_link, mech.n_actuators)
+    tool_doc = r.get("tool", dict)
+    dh = read_dh(TomlReader(path, tool_doc, prefix="tool.")) if "dh" in tool_doc else None
+    tool = read_tool(r, folder, platform_link, mech.n_actuators, dh)
     return dataclasses.replace(mech, tool=tool, tool_directions=read_tool_directions(r, tool))
 
 

@@ -20,6 +20,7 @@ import pinocchio as pin
 
 import pkmtol.values as values
 from pkmtol.exceptions import UnknownJointError, URDFError
+from pkmtol.model.dh import DHTable
 from pkmtol.model.limb import Limb, frame_id, joint_kind
 
 #: Name of the TCP frame pkmtol adds to the tool chain's model.
@@ -43,6 +44,8 @@ class Tool:
         length_m: Tool length: the TCP is ``(0, 0, length_m)`` in the nose frame [m].
         urdf_path: Source URDF (None if built from a ``pin.Model``).
         visual_model: Optional ``pin.GeometryModel`` of the visuals (for the viewer).
+        dh: Optional D–H table of the chain, platform → spindle nose (``[tool.dh]``; enables the
+            wrist's ``dh`` parameters).
     """
 
     model: pin.Model
@@ -53,6 +56,7 @@ class Tool:
     length_m: float
     urdf_path: Path | None = None
     visual_model: Any = None
+    dh: DHTable | None = None
 
     @property
     def nq(self) -> int:
@@ -79,16 +83,17 @@ class Tool:
         """Name of the spindle-nose frame."""
         return str(self.model.frames[self.nose_frame].name)
 
-    def as_limb(self) -> Limb:
+    def as_limb(self, frame: int | None = None) -> Limb:
         """The chain as a :class:`Limb` (platform → TCP): the same raw-error layout, for limb readers.
 
         Its "platform frame" is the TCP frame and its attachment the TCP frame's placement
-        (``tool.tcp``), so a tool parameter's raw errors index it as a limb's do.
+        (``tool.tcp``), so a tool parameter's raw errors index it as a limb's do; ``frame``
+        another end frame (the spindle nose: the end of its D–H table).
         """
         return Limb(
             name=TOOL,
             model=self.model,
-            platform_frame=self.tcp_frame,
+            platform_frame=self.tcp_frame if frame is None else frame,
             actuated=self.actuated,
             home=self.home,
             urdf_path=self.urdf_path,

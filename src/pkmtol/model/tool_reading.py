@@ -11,11 +11,13 @@ every joint, rad or m). The task's tool directions: ``[task] axis`` (the cone's 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from pkmtol.exceptions import InvalidRequestError
+from pkmtol.model.dh import DHTable, check_dh_matches
 from pkmtol.model.reading import TomlReader, load_urdf
 from pkmtol.model.taskspace import ToolDirections
 from pkmtol.model.tool import TOOL, Tool, make_tool
@@ -25,7 +27,9 @@ from pkmtol.units import parse_angle, parse_length
 TOOL_TASK_KEYS = ("axis", "cone", "rings")
 
 
-def read_tool(r: TomlReader, folder: Path, platform_link: str, n_module_actuators: int) -> Tool:
+def read_tool(
+    r: TomlReader, folder: Path, platform_link: str, n_module_actuators: int, dh: DHTable | None = None
+) -> Tool:
     """The ``[tool]`` table as a :class:`Tool` (MechanismFormatError naming the key if it is wrong).
 
     Args:
@@ -34,6 +38,7 @@ def read_tool(r: TomlReader, folder: Path, platform_link: str, n_module_actuator
         platform_link: The module's platform link (the chain's root).
         n_module_actuators: Actuators of the parallel module: with the wrist's, they must make
             as many as the task has rows (3 for a locked wrist, 5 with two wrist actuators).
+        dh: The chain's ``[tool.dh]`` table, if it has one (checked against the URDF).
     """
     urdf = folder / r.get("tool.urdf", str)
     actuated = r.strings("tool.actuated", default=[], what="joint names")
@@ -50,6 +55,9 @@ def read_tool(r: TomlReader, folder: Path, platform_link: str, n_module_actuator
     if home is not None and home.shape != (model.nq,):
         r.fail("tool.home", f"expected {model.nq} numbers, one per joint of {urdf.name}, got {home.tolist()}")
     tool = make_tool(model, platform_link, actuated, locked, nose, length, home, urdf, visual)
+    if dh is not None:  # the chain's D–H table (``[tool.dh]``): its URDF must be the table's
+        check_dh_matches(tool.as_limb(tool.nose_frame), dh, f"python scripts/dh_to_urdf.py {folder}")
+        tool = replace(tool, dh=dh)
     if len(tool.actuated) not in (0, 2):
         r.fail(
             "tool.actuated",
