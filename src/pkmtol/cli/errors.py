@@ -63,11 +63,13 @@ def _run(args: argparse.Namespace) -> int:
         + ", ".join(f"{counts[c]} {c}" for c in names)
     )
     what = "η_c" if args.compensation == "ideal" else "the toleranced errors"
-    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
+    point = "P" if mech.tool is None else "TCP"
+    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): {point} = {mm(table.worst_point_m)}")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition
-    print(f"condition number of the wrench matrix W over the grid: {wc.min():.3g}–{wc.max():.3g}")
+    what_w = "the wrench matrix W" if mech.tool is None else "D S B (what the actuators do to the task)"
+    print(f"condition number of {what_w} over the grid: {wc.min():.3g}–{wc.max():.3g}")
     rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True
