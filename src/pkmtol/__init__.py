@@ -35,6 +35,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.error_model.separation import Separation, separate
     from pkmtol.error_model.sweep import Sweep, sweep
     from pkmtol.error_model.table import ErrorTable, error_table
+    from pkmtol.error_model.tool_chain import HybridParameterSet, hybrid_parameter_set
+    from pkmtol.error_model.tool_sweep import ToolSweep, hybrid_sweep
     from pkmtol.exceptions import (
         ClosedLoopError,
         ClosureFrameError,
@@ -70,6 +72,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
         URDFError,
     )
     from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+    from pkmtol.kinematics.hybrid import HybridChain
+    from pkmtol.kinematics.hybrid_pose import HybridPose
     from pkmtol.kinematics.perturbation import perturbed_limb_models
     from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
     from pkmtol.model.constraints import ConstrainedModel, constraint_models
@@ -78,7 +82,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.model.loader import load_mechanism
     from pkmtol.model.mechanism import Mechanism
     from pkmtol.model.mjcf import load_mjcf, mjcf_limbs
-    from pkmtol.model.taskspace import TaskSpace
+    from pkmtol.model.taskspace import TaskSpace, ToolDirections
+    from pkmtol.model.tool import Tool
     from pkmtol.present.html_report import write_report
     from pkmtol.present.outputs import write_outputs
     from pkmtol.present.tables import summary_text, to_json
@@ -96,6 +101,9 @@ _EXPORTS = {
     "ErrorParameter": "pkmtol.error_model.parameters",
     "ErrorTable": "pkmtol.error_model.table",
     "FailureStats": "pkmtol.design.verification",
+    "HybridChain": "pkmtol.kinematics.hybrid",
+    "HybridParameterSet": "pkmtol.error_model.tool_chain",
+    "HybridPose": "pkmtol.kinematics.hybrid_pose",
     "InvalidArgumentError": "pkmtol.exceptions",
     "InvalidRequestError": "pkmtol.exceptions",
     "JointLimitError": "pkmtol.exceptions",
@@ -129,6 +137,9 @@ _EXPORTS = {
     "Sweep": "pkmtol.error_model.sweep",
     "TaskSpace": "pkmtol.model.taskspace",
     "TendonError": "pkmtol.exceptions",
+    "Tool": "pkmtol.model.tool",
+    "ToolDirections": "pkmtol.model.taskspace",
+    "ToolSweep": "pkmtol.error_model.tool_sweep",
     "Traditional": "pkmtol.design.job",
     "URDFError": "pkmtol.exceptions",
     "UnknownJointError": "pkmtol.exceptions",
@@ -144,6 +155,8 @@ _EXPORTS = {
     "error_table": "pkmtol.error_model.table",
     "exact_reliability": "pkmtol.design.reliability",
     "fosm_tolerances": "pkmtol.design.fosm",
+    "hybrid_parameter_set": "pkmtol.error_model.tool_chain",
+    "hybrid_sweep": "pkmtol.error_model.tool_sweep",
     "load_closed_loop": "pkmtol.model.closed_loop",
     "load_mechanism": "pkmtol.model.loader",
     "load_mjcf": "pkmtol.model.mjcf",
@@ -178,6 +191,9 @@ __all__ = [
     "ErrorParameter",
     "ErrorTable",
     "FailureStats",
+    "HybridChain",
+    "HybridParameterSet",
+    "HybridPose",
     "InvalidArgumentError",
     "InvalidRequestError",
     "JointLimitError",
@@ -211,6 +227,9 @@ __all__ = [
     "Sweep",
     "TaskSpace",
     "TendonError",
+    "Tool",
+    "ToolDirections",
+    "ToolSweep",
     "Traditional",
     "URDFError",
     "UnknownJointError",
@@ -226,6 +245,8 @@ __all__ = [
     "error_table",
     "exact_reliability",
     "fosm_tolerances",
+    "hybrid_parameter_set",
+    "hybrid_sweep",
     "load_closed_loop",
     "load_mechanism",
     "load_mjcf",
