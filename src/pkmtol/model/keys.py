@@ -49,7 +49,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
     ),
     "reference_point": frozenset({"position_m"}),
     "task": frozenset({"kind", "normal", "axis", "cone", "rings"}),
-    "tool": frozenset({"urdf", "actuated", "locked", "nose_frame", "length", "home", "dh"}),
+    "tool": frozenset({"urdf", "actuated", "locked", "nose_frame", "length", "home", "dh", "compensation"}),
     "tool.locked": ANY,
     "tool.dh": frozenset({"joint_types", "joint_names", "links", "end", "limits"}),
     "task_space": frozenset({"kind", "radius_m", "z_m", "layers", "rings", "center_xy_m", "points_m"}),

@@ -225,7 +225,11 @@ def _from_doc(
     tool_doc = r.get("tool", dict)
     dh = read_dh(TomlReader(path, tool_doc, prefix="tool.")) if "dh" in tool_doc else None
     tool = read_tool(r, folder, platform_link, mech.n_actuators, dh)
-    return dataclasses.replace(mech, tool=tool, tool_directions=read_tool_directions(r, tool))
+    scope = r.get("tool.compensation", str, default="machine")
+    if scope not in ("machine", "module"):
+        r.fail("tool.compensation", f"expected 'machine' or 'module', got {scope!r}")
+    extra = {**mech.extra, "tool_scope": scope}
+    return dataclasses.replace(mech, tool=tool, tool_directions=read_tool_directions(r, tool), extra=extra)
 
 
 def read_cost(r: TomlReader) -> dict:

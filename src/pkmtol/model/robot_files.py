@@ -83,7 +83,6 @@ def render_toml(robot: RobotDraft, name: str, command: str = "") -> str:
         "",
         "[design]",
         'target = "0.05 mm"',
-        *([] if robot.tool is None else [f"orientation_target = {_str(robot.tool['orientation_target'])}"]),
         "beta = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]",
         "design_beta = 2.0",
         *_tool_table(robot),

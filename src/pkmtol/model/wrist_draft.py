@@ -97,7 +97,6 @@ def wrist_fields(
         "axis": (round(math.sqrt(0.5), 8), 0.0, round(math.sqrt(0.5), 8)),
         "cone": "15 deg",
         "rings": (6,),
-        "orientation_target": "0.1 mrad",
     }
     return {
         "task_space": task,
