@@ -19,6 +19,7 @@ from pathlib import Path
 RUNS = {
     "module": "module alone, at P",
     "wmod": "whole machine, module compensates",
+    "wmod_tilt": "the same, Δα* = 0.1 mrad",
     "wlock": "wrist locked (3-axis)",
     "wmach": "whole machine, all actuators",
 }
@@ -50,12 +51,15 @@ def main(argv: list[str]) -> int:
     col = docs["module"]["beta"].index(docs["module"]["design_beta"])
     by_name = {run: {p["name"]: p for p in d["parameters"]} for run, d in docs.items()}
     module_unc = [p for p in docs["module"]["parameters"] if p["class"] == "uncompensatable"]
-    print("| parameter | unit | " + " | ".join(RUNS.values()) + " |")
-    print("|---|---|" + "---|" * len(RUNS))
+    print("| parameter | unit | " + " | ".join(RUNS.values()) + " | locked / module compensates |")
+    print("|---|---|" + "---|" * (len(RUNS) + 1))
     for p in module_unc:
         unit = "mm" if p["unit"] == "m" else "mrad"
         cells = [_cell(_tolerance(by_name[run][p["name"]], col), p["unit"]) for run in RUNS]
-        print(f"| {p['name']} | {unit} | " + " | ".join(cells) + " |")
+        lock, mod = (_tolerance(by_name[run][p["name"]], col) for run in ("wlock", "wmod"))
+        finite = lock is not None and mod is not None and lock != float("inf") and mod != float("inf")
+        ratio = f"{lock / mod:.1f}×" if finite else "-"  # type: ignore[operator]
+        print(f"| {p['name']} | {unit} | " + " | ".join(cells) + f" | {ratio} |")
     counts = {
         run: sum(1 for p in d["parameters"] if p["class_in_mode"] == "uncompensatable")
         for run, d in docs.items()
@@ -76,13 +80,15 @@ def main(argv: list[str]) -> int:
         share = 0.0 if t in (None, float("inf")) else 100 * (p["sensitivity"] * t) ** 2 / total
         unit = "µm/µm" if p["unit"] == "m" else "µm/µrad"
         rows.append((share, p, t, unit))
-    print("| sub-assembly | parameter | TCP sensitivity | tolerance | share of σ²[Δλ] [%] |")
-    print("|---|---|---|---|---|")
-    for share, p, t, unit in sorted(rows, key=lambda r: -r[0]):
+    print("| sub-assembly | parameter | TCP sensitivity at the design point | tolerance (design β) |")
+    print("|---|---|---|---|")
+    for _share, p, t, unit in sorted(rows, key=lambda r: (r[3], -r[1]["sensitivity"])):
         tol = (
-            _cell(t, p["unit"]) + (" mm" if p["unit"] == "m" else " mrad") if t is not None else "compensated"
+            _cell(t, p["unit"]) + (" mm" if p["unit"] == "m" else " mrad")
+            if t is not None
+            else p["class_in_mode"]
         )
-        print(f"| {p['sub_assembly']} | {p['name']} | {p['sensitivity']:.4f} {unit} | {tol} | {share:.1f} |")
+        print(f"| {p['sub_assembly']} | {p['name']} | {p['sensitivity']:.4f} {unit} | {tol} |")
     return 0
 
 

@@ -18,6 +18,7 @@ from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
+from pkmtol.error_model.task import hybrid_calibration_refusal
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
@@ -131,6 +132,8 @@ def _tolerances(
 
 def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
+    if mech.tool is not None:
+        raise InvalidRequestError(hybrid_calibration_refusal(mech.name))
     for name, value, low in (
         ("--machines", args.machines, 1),
         ("--holdout", args.holdout, 1),
