@@ -31,6 +31,7 @@ from pkmtol.kinematics.hybrid_pose import (
     STEP_LIMIT_M,
     HybridPose,
     StackedPoses,
+    cross_columns,
     exp3_many,
     limited_many,
     solve_many,
@@ -238,10 +239,10 @@ class HybridChain:
             rot = rot_p @ rt
             a = rot[:, :, 2]
             res = np.einsum("bij,bj->bi", across, a)
-            if np.abs(res).max() < 1e-15:
+            if np.abs(res).max() < 1e-14:
                 break
             w = rot @ jt[:, 3:][:, :, act]  # (b, 3, 2): the axis's angular velocity per joint (K)
-            jac = -np.einsum("bij,bjk->bik", across, np.cross(a[:, :, None], w, axisa=1, axisb=1, axisc=1))
+            jac = np.einsum("bij,bjk->bik", across, cross_columns(w, a))  # −Q* (a × ω)
             step = solve_many(jac, -res)
             big = np.abs(step).max(axis=1) / STEP_LIMIT_JOINT
             q[:, act] += step / np.maximum(big, 1.0)[:, None]
@@ -265,7 +266,7 @@ class HybridChain:
         act = self.actuated
         l0 = st.pos - st.pos_p  # O' → TCP (K)
         w_per_p = st.twist[:, 3:, :3]  # (b, 3, 3) platform angular velocity per ΔP (K)
-        v_per_p = st.twist[:, :3, :3] + np.cross(l0[:, :, None], w_per_p, axisa=1, axisb=1, axisc=1)
+        v_per_p = st.twist[:, :3, :3] - cross_columns(w_per_p, l0)  # + l0 × ω
         dp = np.zeros((len(st.p), 3))
         qt = st.qt.copy()
         for _ in range(iterations):
@@ -277,7 +278,7 @@ class HybridChain:
             pos = op + np.einsum("bij,bj->bi", rp, pt)
             lever = pos - op
             twist = np.empty_like(st.twist)
-            twist[:, :3, :3] = v_per_p - np.cross(lever[:, :, None], w_per_p, axisa=1, axisb=1, axisc=1)
+            twist[:, :3, :3] = v_per_p + cross_columns(w_per_p, lever)  # − lever × ω
             twist[:, 3:, :3] = w_per_p
             twist[:, :3, 3:] = rot @ jt[:, :3][:, :, act]
             twist[:, 3:, 3:] = rot @ jt[:, 3:][:, :, act]
@@ -410,7 +411,11 @@ class HybridChain:
                     f"{sols.errors[pos]}",
                 )
             idx = np.flatnonzero(sols.ok)
-            qt = st.qt[idx].copy()
+            # the wrist from the guesses' tangent step (their task Jacobian), then its own Newton
+            res0, jac0 = task_rows_many(st.twist, st.rot, st.pos, targets, across)
+            qt = st.qt.copy()
+            qt[:, act] += limited_many(solve_many(jac0, -res0))[:, 3:]
+            qt = qt[idx]
             qt[:, act] = self._wrist_many(sols.rotation[idx], across[idx], qt)
             rt, pt, jt = self.kinematics.frames(qt)
             st = StackedPoses.from_solutions(sols, idx, qt, rt, pt, jt, act, self._nq0)

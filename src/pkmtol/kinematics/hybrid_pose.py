@@ -124,7 +124,7 @@ class StackedPoses:
         plat = sols.jacobians[0][idx] @ tangent[:, :nq0]  # (b, 6, 3) platform twist (its frame) per ΔP
         v, w = plat[:, :3], plat[:, 3:]
         twist = np.empty((len(idx), 6, 3 + len(act)))
-        twist[:, :3, :3] = rp @ (v + np.cross(w, pt[:, :, None], axisa=1, axisb=1, axisc=1))
+        twist[:, :3, :3] = rp @ (v + cross_columns(w, pt))
         twist[:, 3:, :3] = rp @ w
         rot = rp @ rt
         twist[:, :3, 3:] = rot @ jt[:, :3][:, :, act]
@@ -174,9 +174,16 @@ def task_rows_many(twist, rot, pos, targets, across):  # noqa: ANN001, ANN202 - 
         return r, twist[:, :3]
     a = rot[:, :, 2]
     res = np.concatenate([r, np.einsum("bij,bj->bi", across, a)], axis=1)
-    axw = np.cross(a[:, :, None], twist[:, 3:], axisa=1, axisb=1, axisc=1)  # a × ω = −ω × a ... per column
+    axw = -cross_columns(twist[:, 3:], a)  # a × ω per column
     jac = np.concatenate([twist[:, :3], -np.einsum("bij,bjk->bik", across, axw)], axis=1)
     return res, jac
+
+
+def cross_columns(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``m[:, :, k] × v`` for every column k: ``m`` (b, 3, k), ``v`` (b, 3) → (b, 3, k)."""
+    x, y, z = m[:, 0], m[:, 1], m[:, 2]
+    vx, vy, vz = v[:, 0, None], v[:, 1, None], v[:, 2, None]
+    return np.stack([y * vz - z * vy, z * vx - x * vz, x * vy - y * vx], axis=1)
 
 
 def exp3_many(theta: np.ndarray) -> np.ndarray:
