@@ -302,3 +302,21 @@ def test_wrist_dh_columns_match_finite_differences_of_its_table(seed) -> None:
         "tool.tcp.rx",
         "tool.tcp.ry",
     ]
+
+
+def test_pkmtol_new_writes_a_checked_hybrid_variant(tmp_path) -> None:
+    from pkmtol.kinematics.robot_folder import new_robot
+
+    made = new_robot("r2rps_ups_wrist", tmp_path / "h", tool_length=0.2, nose=0.1)
+    assert [p.name for p in made.files] == [
+        "mechanism.toml",
+        "limb1.urdf",
+        "limb2.urdf",
+        "limb3.urdf",
+        "limb4.urdf",
+        "wrist.urdf",
+    ]
+    assert not made.report.problems and made.report.tool is not None
+    mech = load_mechanism(made.folder)
+    assert mech.tool.length_m == pytest.approx(0.2) and mech.tool.dh is not None
+    assert HybridChain(mech).wrist_offset_m == pytest.approx(0.3, abs=1e-12)  # nose 0.1 + tool 0.2
