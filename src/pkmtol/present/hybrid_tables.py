@@ -26,6 +26,20 @@ def sub_assemblies(r: Any) -> list[str] | None:
     return [pset.sub_assembly(i) for i in range(len(pset))]
 
 
+def hybrid_ideal_text(r: Any) -> str | None:
+    """What the ``ideal`` mode means on a hybrid (its compensation scope), None for a parallel module."""
+    sweep_ = r.grid
+    scope = getattr(sweep_, "scope", None)
+    if scope is None or r.mechanism.tool is None:
+        return None
+    if scope == "module":
+        return "the module's Eq. 25 carried to the TCP, the wrist's commands held (--compensate-with module)"
+    return (
+        "every actuator, the module's and the wrist's, removes what it can of each error's task error at "
+        "the TCP (the controller knows the compensatable errors exactly; docs/hybrid.md)"
+    )
+
+
 def sub_assembly_lines(
     r: Any, table: Callable[[list[list[str]]], str], h: Callable[[str], str], units: str = "mm"
 ) -> list[str]:

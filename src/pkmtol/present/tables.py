@@ -21,7 +21,7 @@ import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
-from pkmtol.present.hybrid_tables import sub_assemblies, sub_assembly_lines
+from pkmtol.present.hybrid_tables import hybrid_ideal_text, sub_assemblies, sub_assembly_lines
 from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
 from pkmtol.units import display, display_unit
 
@@ -240,7 +240,8 @@ def compensation_lines(r: DesignResult) -> list[str]:
     out = [
         f"compensation: {r.compensation} — "
         + {
-            "ideal": "the paper's Eq. 25 (the controller knows the compensatable errors exactly)",
+            "ideal": hybrid_ideal_text(r)
+            or "the paper's Eq. 25 (the controller knows the compensatable errors exactly)",
             "calibrated": "a least-squares calibration from tracker measurements",
             "none": "no compensation (the traditional method)",
         }[r.compensation]
