@@ -10,6 +10,7 @@ issue 15 (on the 2-core CI machine):
     IK + error model + separation + J             ≥ 10,000 poses/s
     the same on the Delta (loops inside limbs)    ≥ 50 % of the seed robot's rate per pose (issue 18)
     the same on the general path (one tree)       ≥ 70 % of the limb path's rate, ≥ 50 % on the Delta
+    hybrid IK, r2rps_ups_wrist's TCP task grid     ≥ 50 % of the seed robot's IK rate per pose (issue 27)
     exact perturbed forward solves                 ≥ 15,000 /s
     import pkmtol (whole process)                  ≤ 0.3 s
     pkmtol allocate with figures (whole process)   ≤ 2.0 s CPU
@@ -71,6 +72,8 @@ from pkmtol.design.reliability import _NODES, exact_reliability_many  # noqa: E4
 from pkmtol.design.verification import sample_errors  # noqa: E402
 from pkmtol.error_model.parameters import default_set, parameter_set  # noqa: E402
 from pkmtol.error_model.sweep import sweep  # noqa: E402
+from pkmtol.error_model.tool_chain import hybrid_parameter_set  # noqa: E402
+from pkmtol.error_model.tool_sweep import hybrid_sweep  # noqa: E402
 from pkmtol.error_model.tree_parameters import from_limb_set  # noqa: E402
 from pkmtol.error_model.tree_separation import tree_sweep  # noqa: E402
 from pkmtol.executor import Executor  # noqa: E402
@@ -78,6 +81,8 @@ from pkmtol.kinematics import acceleration  # noqa: E402
 from pkmtol.kinematics.batch import BatchChain  # noqa: E402
 from pkmtol.kinematics.closed_chain import ClosedChain  # noqa: E402
 from pkmtol.kinematics.continuation import continuation  # noqa: E402
+from pkmtol.kinematics.hybrid import HybridChain, HybridPose, task_grid  # noqa: E402
+from pkmtol.kinematics.hybrid_continuation import hybrid_continuation  # noqa: E402
 from pkmtol.kinematics.perturbation import perturbed_limb_models  # noqa: E402
 from pkmtol.kinematics.tree_chain import TreeBatch  # noqa: E402
 from pkmtol.model.loader import load_mechanism  # noqa: E402
@@ -216,6 +221,14 @@ def main() -> None:
     delta_tree, delta_raw = tree_from_mechanism(delta)
     delta_tree_params = from_limb_set(delta_raw, delta_pset)
     delta_tree_batch = TreeBatch(delta_tree)
+    # issue 27: the whole machine (module + A/C wrist) on its TCP task grid, decoupled and general
+    hybrid = load_mechanism(ROOT / "robots" / "r2rps_ups_wrist")
+    hybrid_chain = HybridChain(hybrid)
+    hybrid_general = HybridChain(hybrid)
+    hybrid_general.wrist_offset_m = None  # the nested Newton every tool chain can take
+    hybrid_tcp, hybrid_axes = task_grid(hybrid)
+    hybrid_home = hybrid_chain.home()
+    hybrid_pset = hybrid_parameter_set(hybrid, "urdf")
 
     n_per_pose = 40  # the per-pose baselines are slow: a subset, scaled
     fast = {
@@ -232,6 +245,11 @@ def main() -> None:
         "forward": lambda: fwd_batch.forward(u, q0, offsets, eps),
         "forward_numpy": numpy_path(lambda: fwd_batch.forward(u, q0, offsets, eps)),
         "forward_per_pose": lambda: forward_per_pose(n_per_pose),
+        "hybrid_ik": lambda: hybrid_continuation(hybrid_chain, hybrid_tcp, hybrid_axes, hybrid_home),
+        "hybrid_ik_general": lambda: hybrid_continuation(
+            hybrid_general, hybrid_tcp, hybrid_axes, hybrid_home
+        ),
+        "hybrid_sweep": lambda: hybrid_sweep(hybrid, hybrid_pset, hybrid_tcp, hybrid_axes, hybrid_chain),
         "reliability": lambda: exact_reliability_many(cov, res.target_m),
         "reliability_gammainc": gammainc_pass,
     }
@@ -248,6 +266,12 @@ def main() -> None:
     assert np.abs(fast["delta_tree_sweep"]().J - fast["delta_sweep"]().J).max() < 1e-10
     assert np.abs(numpy_path(lambda: continuation(batch, grid, home))().q - reference).max() < 1e-12
     assert np.abs(scipy_ik(chain, grid[:5], guesses[:5]) - reference[:5]).max() < 1e-12
+    hybrid_check = hybrid_continuation(hybrid_chain, hybrid_tcp, hybrid_axes)
+    for sol, t, a in zip(hybrid_check, hybrid_tcp, hybrid_axes, strict=True):
+        assert (
+            isinstance(sol, HybridPose)
+            and max(np.abs(sol.tcp_m - t).max(), np.abs(sol.axis - a).max()) < 1e-11
+        )
     m = len(grid)
     path = " — compiled kernels" if acceleration.kernels() is not None else " — numpy (no numba)"
     rate = {
@@ -264,6 +288,9 @@ def main() -> None:
         "delta_tree_sweep": len(delta_grid) / best["delta_tree_sweep"],
         "forward": n_fwd / best["forward"],
         "forward_per_pose": n_per_pose / best["forward_per_pose"],
+        "hybrid_ik": len(hybrid_tcp) / best["hybrid_ik"],
+        "hybrid_ik_general": len(hybrid_tcp) / best["hybrid_ik_general"],
+        "hybrid_sweep": len(hybrid_tcp) / best["hybrid_sweep"],
     }
     rows = [
         (
@@ -317,6 +344,25 @@ def main() -> None:
             f"limb path {rate['delta_sweep']:,.0f}/s: "
             f"{rate['delta_tree_sweep'] / rate['delta_sweep']:.0%} of it",
             "≥ 50 % of the limb path's",
+            "hybrid IK: r2rps_ups_wrist, TCP points × tool axes (decoupled)",
+            f"{len(hybrid_tcp)} poses",
+            f"{rate['hybrid_ik']:,.0f} poses/s",
+            f"{mech.name} IK above {rate['ik']:,.0f}/s: {rate['hybrid_ik'] / rate['ik']:.0%} of it",
+            "≥ 50 % of the seed's",
+        ),
+        (
+            "  the same, general nested Newton (any tool chain)",
+            f"{len(hybrid_tcp)} poses",
+            f"{rate['hybrid_ik_general']:,.0f} poses/s",
+            f"{rate['hybrid_ik_general'] / rate['ik']:.0%} of the seed's IK",
+            "",
+        ),
+        (
+            "hybrid IK + whole-machine error model at the TCP",
+            f"{len(hybrid_tcp)} poses",
+            f"{rate['hybrid_sweep']:,.0f} poses/s",
+            f"{rate['hybrid_sweep'] / rate['sweep']:.0%} of the seed's IK + error model",
+            "",
         ),
         (
             "exact perturbed forward solves",

@@ -44,6 +44,7 @@ from pkmtol.units import parse_length
 
 REPO = Path(__file__).resolve().parents[1]
 SEED = REPO / "robots" / "r2rps_ups"
+HYBRID = REPO / "robots" / "r2rps_ups_wrist"
 SMALL = ["--samples", "300", "--exact-samples", "0", "--verification-poses", "30", "--no-progress"]
 TASK = TaskSpace(kind="cylinder", radius_m=0.6, z_range_m=(0.9, 1.1), layers=3, rings=(8, 16, 24))
 HOMES = [[0.32175, 0, 0.79057, 0, 0, -0.32175], [0, 0.2606, 0.77621, 0, 0, -0.2606], [0, -0.2606, 0.77621, 0, 0, 0.2606], [0, 0, 0.75]]  # fmt: skip
@@ -412,6 +413,11 @@ CASES: list[Case] = [
     Case("One tree with loops", "a loop whose two frames are on one body", _tree_loop_on_one_body, E.ClosedLoopError, ("same_body", "same body"), {"culprit": "same_body"}),
     Case("Command line", "`calibrate --instrument ballbar` with a reading in degrees", ballbar_reading_in_degrees, E.MeasurementFileError, ("'d'", "not a length unit")),
     Case("Command line", "`calibrate --plan-per-machine` without `--simulate`", cli("calibrate", "{robot}", "--plan-per-machine"), E.InvalidRequestError, ("--plan-per-machine", "give --simulate too")),
+    # ---- hybrid machines: a tool chain on the platform (docs/hybrid.md)
+    Case("Hybrid machines", "`--tool-length` on a robot without a `[tool]` chain", cli("check", "{robot}", "--tool-length", "150mm"), IA, ("--tool-length 150mm", "has no tool chain"), {"argument": "--tool-length"}),
+    Case("Hybrid machines", "`--lock-wrist` that leaves a wrist joint free", cli("check", str(HYBRID), "--lock-wrist", "wrist_a=45deg"), IA, ("--lock-wrist wrist_a=45deg", "missing wrist_c"), {"argument": "--lock-wrist"}),
+    Case("Hybrid machines", "`pkmtol calibrate` on a hybrid machine", cli("calibrate", str(HYBRID)), E.InvalidRequestError, ("r2rps_ups_wrist", "is a hybrid machine", "not available")),
+    Case("Hybrid machines", "a `[tool]` table with `task.kind = \"position\"`", toml("[design]", '[tool]\nurdf = "limb4.urdf"\nnose_frame = "platform"\n\n[design]'), MF, ("task.kind", "a [tool] table needs task.kind = 'tool'")),
 ]  # fmt: skip
 
 

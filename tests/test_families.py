@@ -35,6 +35,16 @@ DOCUMENTED = {
         u_spacing=0.3, s_offset=0.45, upr_platform=0.12, spr_platform=0.18, height=0.9, offset=0.3,
         leg_stroke=(0.6, 1.4), task_radius=0.4, task_z=(1.1, 1.3),
     ),
+    "r2rps_ups_wrist": dict(
+        ups_base=0.5, rps_base=0.45, ups_platform=0.25, rps_platform=0.25, height=0.75, offset=0.3,
+        leg_stroke=(0.4, 1.6), centre_stroke=(0.3, 1.6), c_height=0.15, nose=0.12, tool_length=0.15,
+        task_radius=0.3, task_z=(1.15, 1.3), task_center_x=0.19,
+    ),
+    "tricept_wrist": dict(
+        base_radius=0.45, platform_radius=0.18, height=0.9, offset=0.3, leg_stroke=(0.6, 1.4),
+        centre_stroke=(0.5, 1.3), c_height=0.15, nose=0.12, tool_length=0.15, task_radius=0.2,
+        task_z=(1.35, 1.5), task_center_x=0.19,
+    ),
 }  # fmt: skip
 
 

@@ -35,6 +35,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.error_model.separation import Separation, separate
     from pkmtol.error_model.sweep import Sweep, sweep
     from pkmtol.error_model.table import ErrorTable, error_table
+    from pkmtol.error_model.tool_chain import HybridParameterSet, hybrid_parameter_set
+    from pkmtol.error_model.tool_sweep import ToolSweep, hybrid_sweep
     from pkmtol.error_model.tree_parameters import TreeParameters, tree_urdf_set
     from pkmtol.error_model.tree_separation import frame_maps, separate_tree, tree_sweep
     from pkmtol.exceptions import (
@@ -72,6 +74,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
         URDFError,
     )
     from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+    from pkmtol.kinematics.hybrid import HybridChain
+    from pkmtol.kinematics.hybrid_pose import HybridPose
     from pkmtol.kinematics.perturbation import perturbed_limb_models
     from pkmtol.kinematics.tree_chain import TreeBatch, TreeChain
     from pkmtol.model.closed_loop import closed_loop_limbs, load_closed_loop
@@ -82,7 +86,8 @@ if TYPE_CHECKING:  # the names as static tools see them; at run time they load o
     from pkmtol.model.loop_tree import LoopTree, PointTask
     from pkmtol.model.mechanism import Mechanism
     from pkmtol.model.mjcf import load_mjcf, mjcf_limbs, tree_from_mjcf
-    from pkmtol.model.taskspace import TaskSpace
+    from pkmtol.model.taskspace import TaskSpace, ToolDirections
+    from pkmtol.model.tool import Tool
     from pkmtol.model.tree_from_limbs import tree_from_mechanism
     from pkmtol.model.tree_inputs import tree_from_constraint_models, tree_from_urdf
     from pkmtol.present.html_report import write_report
@@ -102,6 +107,9 @@ _EXPORTS = {
     "ErrorParameter": "pkmtol.error_model.parameters",
     "ErrorTable": "pkmtol.error_model.table",
     "FailureStats": "pkmtol.design.verification",
+    "HybridChain": "pkmtol.kinematics.hybrid",
+    "HybridParameterSet": "pkmtol.error_model.tool_chain",
+    "HybridPose": "pkmtol.kinematics.hybrid_pose",
     "InvalidArgumentError": "pkmtol.exceptions",
     "InvalidRequestError": "pkmtol.exceptions",
     "JointLimitError": "pkmtol.exceptions",
@@ -137,6 +145,9 @@ _EXPORTS = {
     "Sweep": "pkmtol.error_model.sweep",
     "TaskSpace": "pkmtol.model.taskspace",
     "TendonError": "pkmtol.exceptions",
+    "Tool": "pkmtol.model.tool",
+    "ToolDirections": "pkmtol.model.taskspace",
+    "ToolSweep": "pkmtol.error_model.tool_sweep",
     "Traditional": "pkmtol.design.job",
     "TreeBatch": "pkmtol.kinematics.tree_chain",
     "TreeChain": "pkmtol.kinematics.tree_chain",
@@ -156,6 +167,8 @@ _EXPORTS = {
     "exact_reliability": "pkmtol.design.reliability",
     "fosm_tolerances": "pkmtol.design.fosm",
     "frame_maps": "pkmtol.error_model.tree_separation",
+    "hybrid_parameter_set": "pkmtol.error_model.tool_chain",
+    "hybrid_sweep": "pkmtol.error_model.tool_sweep",
     "load_closed_loop": "pkmtol.model.closed_loop",
     "load_mechanism": "pkmtol.model.loader",
     "load_mjcf": "pkmtol.model.mjcf",
@@ -197,6 +210,9 @@ __all__ = [
     "ErrorParameter",
     "ErrorTable",
     "FailureStats",
+    "HybridChain",
+    "HybridParameterSet",
+    "HybridPose",
     "InvalidArgumentError",
     "InvalidRequestError",
     "JointLimitError",
@@ -232,6 +248,9 @@ __all__ = [
     "Sweep",
     "TaskSpace",
     "TendonError",
+    "Tool",
+    "ToolDirections",
+    "ToolSweep",
     "Traditional",
     "TreeBatch",
     "TreeChain",
@@ -251,6 +270,8 @@ __all__ = [
     "exact_reliability",
     "fosm_tolerances",
     "frame_maps",
+    "hybrid_parameter_set",
+    "hybrid_sweep",
     "load_closed_loop",
     "load_mechanism",
     "load_mjcf",

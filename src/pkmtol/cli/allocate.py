@@ -10,6 +10,8 @@ from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import (
     OPTION_OF_FIELD,
     add_executor_options,
+    add_tool_options,
+    apply_tool_options,
     executor_from,
     named_as_options,
     show_progress,
@@ -164,11 +166,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "point instead of a sphere",
     )
     add_executor_options(p)
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = load_mechanism(args.robot)
+    mech = apply_tool_options(load_mechanism(args.robot), args)
     target = target_option(args.target)
     betas = design_beta = None
     if args.beta is not None and len(args.beta) == 1:

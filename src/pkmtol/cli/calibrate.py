@@ -18,9 +18,10 @@ from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
-from pkmtol.cli.common import add_executor_options, executor_from
+from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
+from pkmtol.error_model.task import hybrid_calibration_refusal
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
@@ -86,6 +87,7 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<robot>/calibration)")
     p.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     add_executor_options(p)
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
@@ -179,7 +181,9 @@ def _instrument_data(
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = load_mechanism(args.robot)
+    mech = apply_tool_options(load_mechanism(args.robot), args)
+    if mech.tool is not None:
+        raise InvalidRequestError(hybrid_calibration_refusal(mech.name))
     for name, value, low in (
         ("--machines", args.machines, 1),
         ("--holdout", args.holdout, 1),

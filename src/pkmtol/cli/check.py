@@ -7,9 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.cli.common import EXIT_PROBLEMS, mm, show_progress
+from pkmtol.cli.common import EXIT_PROBLEMS, add_tool_options, apply_tool_options, mm, show_progress
 from pkmtol.kinematics.check import CheckReport, JointReport, check_mechanism
 from pkmtol.model.loader import load_mechanism
+from pkmtol.model.taskspace import TaskSpace
 
 #: Unreachable points listed one by one; the rest are counted.
 MAX_LISTED = 10
@@ -27,11 +28,14 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("robot", type=Path, help="robot folder holding mechanism.toml (e.g. robots/r2rps_ups)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    report = check_mechanism(load_mechanism(args.robot), progress=show_progress(args.no_progress))
+    report = check_mechanism(
+        apply_tool_options(load_mechanism(args.robot), args), progress=show_progress(args.no_progress)
+    )
     print("\n".join(format_check(report)))
     return EXIT_PROBLEMS if report.problems else 0
 
@@ -62,6 +66,23 @@ def format_check(report: CheckReport) -> list[str]:
         )
         for j in limb.joints:
             out.append(f"    {j.name:<{width}}  {_joint_row(j)}")
+    if report.tool is not None:  # a hybrid: the tool chain on the platform
+        t, tool = report.tool, mech.tool
+        assert tool is not None
+        actuated = [j.name for j in t.joints if j.actuated]
+        locked = [j.name for j in t.joints if not j.actuated]
+        source = t.urdf_path.name if t.urdf_path is not None else "(pin.Model)"
+        out.append(
+            f"  tool chain  {source}  actuated: {', '.join(actuated) or 'none'}  locked: "
+            f"{', '.join(locked) or 'none'}  TCP {1e3 * tool.length_m:.1f} mm beyond '{tool.nose_name}'"
+        )
+        width = max(len("joint"), *(len(j.name) for j in t.joints))
+        out.append(
+            f"    {'joint':<{width}}  type  unit  {'lower':>9}  {'upper':>9}  "
+            f"{'range min':>9}  {'range max':>9}"
+        )
+        for j in t.joints:
+            out.append(f"    {j.name:<{width}}  {_joint_row(j)}")
     out.append("")
     out.append(
         f"mobility: f = {report.mobility}  ({report.n_joints} joints - rank {report.closure_rank} "
@@ -80,7 +101,12 @@ def format_check(report: CheckReport) -> list[str]:
         out.append(f"  ... and {len(report.unreachable) - MAX_LISTED} more unreachable points")
     n_passive = report.n_joints - mech.n_actuators
     rows = [
-        ("inverse", f"inverse kinematics (closure + task rows, {report.n_joints} joints)"),
+        (
+            "inverse",
+            f"inverse kinematics (closure + task rows, {report.n_joints} joints)"
+            if mech.tool is None
+            else f"inverse kinematics (the TCP task: {3 + len(mech.tool.actuated)} rows, P and the wrist)",
+        ),
         ("forward", f"forward kinematics (closure rows, {n_passive} passive joints)"),
     ]
     if report.n_reachable:
@@ -92,7 +118,7 @@ def format_check(report: CheckReport) -> list[str]:
             values = [getattr(p, f"{which}_condition") for p in report.points if p.reachable]
             out.append(
                 f"  {label:<{width}}  {min(values):.4g} to {max(values):.4g}, "
-                f"worst at P = {mm(worst.target_m)}"
+                f"worst at {'P' if mech.tool is None else 'TCP'} = {mm(worst.target_m)}"
             )
     out.append("")
     out.append("result: " + ("; ".join(report.problems) if report.problems else "OK"))
@@ -102,6 +128,17 @@ def format_check(report: CheckReport) -> list[str]:
 def _describe_task_space(report: CheckReport) -> str:
     ts = report.mechanism.task_space
     n = len(report.points)
+    cone = report.mechanism.tool_directions
+    if cone is not None:  # a hybrid: the TCP points x the tool axes
+        axes = len(cone.grid())
+        return (
+            f"TCP points x {axes} tool axes within {np.degrees(cone.half_angle_rad):.1f} deg of "
+            f"{np.round(cone.axis, 4).tolist()} = {n} targets; TCP points: " + _describe_points(ts, n // axes)
+        )
+    return _describe_points(ts, n)
+
+
+def _describe_points(ts: TaskSpace, n: int) -> str:
     if ts.kind == "cylinder":
         per_layer = " + ".join(str(k) for k in (1, *ts.rings))
         z0, z1 = (f"{round(1e3 * z, 1) + 0.0:.1f}" for z in ts.z_range_m)

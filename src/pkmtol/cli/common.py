@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import sys
 from collections.abc import Iterator, Mapping
+from typing import Any
 
 import numpy as np
 
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.executor import Executor
-from pkmtol.units import parse_length
+from pkmtol.units import parse_angle, parse_length
 
 #: Exit code of a pkmtol error (bad input or an impossible request).
 EXIT_ERROR = 2
@@ -96,3 +98,91 @@ def executor_from(args: argparse.Namespace) -> Executor:
         ExecutorError: a bad worker count, or no scheduler at the ``--dask`` address.
     """
     return Executor(workers=args.workers, dask=args.dask).connect()
+
+
+def add_tool_options(parser: argparse.ArgumentParser) -> None:
+    """``--tool-length`` and ``--compensate-with``: a hybrid's tool and compensation (docs/hybrid.md)."""
+    parser.add_argument(
+        "--tool-length",
+        default=None,
+        metavar="LENGTH",
+        help="a hybrid machine: the tool length, spindle nose → TCP, with its unit (150mm); default "
+        "[tool] length",
+    )
+    parser.add_argument(
+        "--lock-wrist",
+        default=None,
+        metavar="JOINT=ANGLE,...",
+        help="a hybrid machine: lock every wrist joint at the given value for 3-axis work, e.g. "
+        "wrist_c=90deg,wrist_a=45deg (the task is then the TCP position; the tool axis follows)",
+    )
+    parser.add_argument(
+        "--compensate-with",
+        choices=["machine", "module"],
+        default=None,
+        help="a hybrid machine: which actuators compensate — machine: the module's and the wrist's "
+        "together (default), module: the module's alone, the wrist's commands unchanged (the paper's "
+        "Eq. 25 carried to the TCP)",
+    )
+
+
+def apply_tool_options(mechanism: Any, args: argparse.Namespace) -> Any:
+    """The mechanism with ``--tool-length`` and ``--compensate-with`` applied (unchanged without them).
+
+    Raises:
+        InvalidArgumentError: a bad length, or a tool option on a mechanism without a [tool] chain.
+    """
+    length = getattr(args, "tool_length", None)
+    scope = getattr(args, "compensate_with", None)
+    lock = getattr(args, "lock_wrist", None)
+    if length is None and scope is None and lock is None:
+        return mechanism
+    if mechanism.tool is None:
+        given = (("--tool-length", length), ("--compensate-with", scope), ("--lock-wrist", lock))
+        option, value = next((o, v) for o, v in given if v is not None)
+        raise InvalidArgumentError(
+            option, value, f"'{mechanism.name}' has no tool chain; add a [tool] table (docs/hybrid.md)"
+        )
+    tool = mechanism.tool
+    directions = mechanism.tool_directions
+    if lock is not None:
+        tool, directions = _locked(tool, lock), None
+    if length is not None:
+        try:
+            value = parse_length(length, "--tool-length")
+        except InvalidRequestError as err:
+            raise InvalidArgumentError(
+                "--tool-length", length, str(err).removeprefix("--tool-length: ")
+            ) from err
+        if value < 0:
+            raise InvalidArgumentError("--tool-length", length, "a tool length must be ≥ 0, e.g. 150mm")
+        tool = tool.with_length(value)
+    extra = dict(mechanism.extra)
+    if scope is not None:
+        extra["tool_scope"] = scope
+    return dataclasses.replace(mechanism, tool=tool, tool_directions=directions, extra=extra)
+
+
+def _locked(tool: Any, text: str) -> Any:
+    """``--lock-wrist``: the tool chain with every joint of ``joint=value,...`` locked (all of them)."""
+    locked: dict[str, float] = {}
+    kinds = dict(zip(tool.joint_names, tool.joint_kinds, strict=True))
+    for item in (x.strip() for x in text.split(",") if x.strip()):
+        name, sep, value = (part.strip() for part in item.partition("="))
+        if not sep or name not in kinds:
+            raise InvalidArgumentError(
+                "--lock-wrist",
+                text,
+                f"write JOINT=VALUE,... with the joints {', '.join(kinds)}, e.g. wrist_a=45deg",
+            )
+        parse = parse_angle if kinds[name] == "R" else parse_length
+        try:
+            locked[name] = parse(value, "--lock-wrist")
+        except InvalidRequestError as err:
+            raise InvalidArgumentError("--lock-wrist", text, str(err).removeprefix("--lock-wrist: ")) from err
+    missing = [n for n in kinds if n not in locked]
+    if missing:
+        raise InvalidArgumentError(
+            "--lock-wrist", text, f"lock every wrist joint for 3-axis work; missing {', '.join(missing)}"
+        )
+    return tool.with_locked(locked)

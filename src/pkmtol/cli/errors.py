@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
-from pkmtol.cli.common import mm, show_progress
+from pkmtol.cli.common import add_tool_options, apply_tool_options, mm, show_progress
 from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
 from pkmtol.exceptions import OutputError
@@ -42,11 +42,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     add_plan_options(p)
     p.add_argument("--json", type=Path, default=None, help="also write the table as JSON to FILE")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = load_mechanism(args.robot)
+    mech = apply_tool_options(load_mechanism(args.robot), args)
     if args.json is not None and not (args.json.parent or Path(".")).is_dir():
         raise OutputError(args.json, f"folder {args.json.parent} does not exist")
     settings = plan_settings(mech, args) if args.compensation == "calibrated" else None
@@ -62,11 +63,13 @@ def _run(args: argparse.Namespace) -> int:
         + ", ".join(f"{counts[c]} {c}" for c in names)
     )
     what = "η_c" if args.compensation == "ideal" else "the toleranced errors"
-    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): P = {mm(table.worst_point_m)}")
+    point = "P" if mech.tool is None else "TCP"
+    print(f"worst pose (largest σ[Δλ] with {what} ~ N(0,1) SI): {point} = {mm(table.worst_point_m)}")
     for line in overconstraint_lines(table.grid, table.pset.names):
         print(line)
     wc = table.grid.W_condition
-    print(f"condition number of the wrench matrix W over the grid: {wc.min():.3g}–{wc.max():.3g}")
+    what_w = "the wrench matrix W" if mech.tool is None else "D S B (what the actuators do to the task)"
+    print(f"condition number of {what_w} over the grid: {wc.min():.3g}–{wc.max():.3g}")
     rows = [["parameter", "unit", "class", "sensitivity", "uncompensated"]]
     for p, c, s, su in zip(
         table.pset.parameters, table.classes, table.sensitivity, table.sensitivity_uncompensated, strict=True

@@ -14,7 +14,8 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     """Register ``pkmtol new`` and one sub-command per family with its dimensions."""
     p = subparsers.add_parser(
         "new",
-        help="write a checked robot folder of a bundled family (tricept, sprint_z3, exechon, r2rps_ups) "
+        help="write a checked robot folder of a bundled family (tricept, sprint_z3, exechon, r2rps_ups, "
+        "the hybrids r2rps_ups_wrist, tricept_wrist) "
         "from a few dimensions",
         description="Write robots/<name>/mechanism.toml and its limb URDFs for one of the bundled "
         "families with the dimensions given (the others keep the bundled robot's values; with no "

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.allocate import scene_options, view
-from pkmtol.cli.common import named_as_options, show_progress
+from pkmtol.cli.common import add_tool_options, apply_tool_options, named_as_options, show_progress
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.exceptions import OutputError
@@ -34,11 +34,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="the 1σ ellipsoid of P's error at every grid point instead of a sphere",
     )
+    add_tool_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = load_mechanism(args.robot)
+    mech = apply_tool_options(load_mechanism(args.robot), args)
     if args.html is not None and not (args.html.parent or Path(".")).is_dir():
         raise OutputError(args.html, f"folder {args.html.parent} does not exist")
     with named_as_options():

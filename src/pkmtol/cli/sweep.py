@@ -41,6 +41,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<robot name>-sweep)")
     p.add_argument("--no-figures", action="store_true", help="do not write the figure")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--compensate-with",
+        choices=["machine", "module"],
+        default=None,
+        help="a hybrid machine: which actuators compensate (default: [tool] compensation, else machine)",
+    )
     add_executor_options(p)
     p.set_defaults(run=_run)
 
@@ -60,7 +66,15 @@ def _run(args: argparse.Namespace) -> int:
     bar = tqdm(
         total=total, desc="variants", unit="variant", disable=args.no_progress or not sys.stderr.isatty()
     )
-    result = synthesize(args.robot, varies, args.pset, args.beta, executor, progress=lambda n: bar.update(1))
+    result = synthesize(
+        args.robot,
+        varies,
+        args.pset,
+        args.beta,
+        executor,
+        progress=lambda n: bar.update(1),
+        tool_scope=args.compensate_with,
+    )
     bar.close()
     print(summary_text(result), end="")
     try:

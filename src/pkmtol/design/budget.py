@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from pkmtol.design.mode_verification import MODE_CHUNK
-from pkmtol.error_model.parameters import default_set, parameter_set
-from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.task import machine_parameter_set, probe_sweep
+from pkmtol.error_model.tool_sweep import tool_task_grid
 from pkmtol.exceptions import ResourceLimitError
 from pkmtol.model.mechanism import Mechanism
 
@@ -74,9 +74,9 @@ def estimate_memory(mechanism: Mechanism, options: Any) -> MemoryEstimate:
     ``k`` is counted from the error model at four grid points spread over the grid (first to last;
     four inverse kinematics): a symmetric point alone (the centre) can hide some of them.
     """
-    pset = parameter_set(mechanism, options.parameter_set or default_set(mechanism))
-    grid = mechanism.task_space.grid()
-    probe = sweep(mechanism, pset, grid[np.unique(np.linspace(0, len(grid) - 1, 4).astype(int))])
+    pset = machine_parameter_set(mechanism, options.parameter_set)
+    grid = mechanism.task_space.grid() if mechanism.tool is None else tool_task_grid(mechanism)[0]
+    probe = probe_sweep(mechanism, pset, np.unique(np.linspace(0, len(grid) - 1, 4).astype(int)))
     k = probe.classify().count("uncompensatable")
     n = len(pset)
     samples = int(options.samples)

@@ -175,8 +175,13 @@ def drawing_tolerances(
         if not math.isfinite(s):
             continue
         p = pset.parameters[i]
-        limb = mechanism.limbs[p.limb]
-        raw = pset.selections[p.limb][:, i - pset.slices[p.limb].start]
+        if p.limb >= len(mechanism.limbs) and mechanism.tool is not None:  # a hybrid's tool chain
+            limb = mechanism.tool.as_limb()
+            tool_sel, tool_part = getattr(pset, "tool_selection"), getattr(pset, "tool_slice")  # noqa: B009
+            raw = tool_sel[:, i - tool_part.start]
+        else:
+            limb = mechanism.limbs[p.limb]
+            raw = pset.selections[p.limb][:, i - pset.slices[p.limb].start]
         t = settings.factor * s
         fields = _callout(limb, raw, p.unit, t, axis, settings, p.name)
         out.append(DrawingTolerance(index=int(i), name=p.name, unit=p.unit, sigma=s, tolerance=t, **fields))

@@ -35,8 +35,9 @@ from pkmtol.design.reliability import reliability_fosm
 from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify_all
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import Sweep, guesses_near, sweep
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set, sample_sweep
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, NoiseFloorError
 from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
@@ -305,11 +306,11 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     mode = opt.compensation
     timings: dict[str, float] = {}
     rng = np.random.default_rng(opt.seed)
-    pset = parameter_set(mechanism, opt.parameter_set or default_set(mechanism))
+    pset = machine_parameter_set(mechanism, opt.parameter_set)  # a hybrid's: with its tool's
 
     t0 = time.perf_counter()
     chain = ClosedChain(mechanism)
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=opt.progress)
+    grid = grid_sweep(mechanism, pset, chain, progress=opt.progress)  # a hybrid's: at the TCP
     classes = grid.classify()
     timings["error model on grid"] = time.perf_counter() - t0
 
@@ -384,8 +385,9 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     timings["allocation"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    points = mechanism.task_space.sample(rng, min(opt.verification_poses, opt.samples))
-    rnd = sweep(mechanism, pset, points, chain, guesses=guesses_near(grid, points), progress=opt.progress)
+    rnd = sample_sweep(
+        mechanism, pset, grid, rng, min(opt.verification_poses, opt.samples), chain, opt.progress
+    )
     rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     timings["verification poses"] = time.perf_counter() - t0
 
@@ -428,7 +430,9 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
 
     t0 = time.perf_counter()
     ver: dict[str, Verification] = {}
-    if mode == "ideal" and alpha_target is None:  # the exact chunks of all distributions at once
+    if (
+        mode == "ideal" and alpha_target is None and mechanism.tool is None
+    ):  # the exact chunks of all distributions at once
         ver = verify_all(
             mechanism,
             pset,

@@ -35,6 +35,9 @@ from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.tool_chain import HybridParameterSet
+from pkmtol.error_model.tool_exact import tool_exact
+from pkmtol.error_model.tool_sweep import ToolSweep
 from pkmtol.exceptions import KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -48,6 +51,8 @@ ExactError = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarra
 
 def ideal_exact(mechanism: Mechanism, pset: ParameterSet, sweep_: Sweep, corrected: bool) -> ExactError:
     """Exact pose errors with the Eq. 25 correction (``corrected``) or the nominal commands."""
+    if isinstance(sweep_, ToolSweep) and isinstance(pset, HybridParameterSet):  # a hybrid: its TCP
+        return tool_exact(mechanism, pset, sweep_, corrected)
     chain = ClosedChain(mechanism)
 
     def error(k: int, delta: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

@@ -22,9 +22,10 @@ from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps, mode_maps
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep, sweep
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep
 from pkmtol.error_model.table import ErrorTable, error_table
+from pkmtol.error_model.task import grid_sweep, hybrid_calibration_refusal, machine_parameter_set
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -104,6 +105,8 @@ def mode_setup(
     if mode == "none":
         mode_classes = ["absorbed" if c == "absorbed" else "toleranced" for c in classes]
         return ModeSetup(mode, mode_maps(grid, "none"), nonabs, mode_classes, None, np.zeros(0, dtype=int))
+    if mechanism.tool is not None:  # the calibration stage models the module's P (docs/hybrid.md)
+        raise InvalidRequestError(hybrid_calibration_refusal(mechanism.name))
     settings = settings or CalibrationSettings()
     pool = candidate_pool(mechanism, pset, settings, chain, grid=grid)
     plan = make_plan(mechanism, pset, classes, settings, pool, scale)
@@ -148,9 +151,9 @@ def mode_error_table(
     """
     if mode == "ideal":
         return error_table(mechanism, kind, progress=progress)
-    pset = parameter_set(mechanism, kind or default_set(mechanism))
+    pset = machine_parameter_set(mechanism, kind)
     chain = ClosedChain(mechanism)
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=progress)
+    grid = grid_sweep(mechanism, pset, chain, progress=progress)
     classes = grid.classify()
     setup = mode_setup(mechanism, pset, grid, classes, mode, chain, settings)
     cols = setup.columns

@@ -122,6 +122,10 @@ def _zonotope_max(H: np.ndarray) -> tuple[np.ndarray, float, int]:
     W /= np.linalg.norm(W, axis=1)[:, None]
     C = W @ H  # (pairs, m): side of every generator's plane at each corner
     coplanar = np.abs(C) <= _COPLANAR * hn[None, :]
+    # a and b span the plane: in it by construction (round-off in W can say otherwise when they
+    # are nearly parallel, which left _plane_patterns no generator to turn around)
+    coplanar[np.arange(a.size), a] = True
+    coplanar[np.arange(a.size), b] = True
     base = np.sign(C)
     base[coplanar] = 0.0
     best_value, best_signs, count = -1.0, np.ones(m), 0

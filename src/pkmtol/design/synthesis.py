@@ -37,8 +37,8 @@ import numpy as np
 from pkmtol.design.cost import cost_model
 from pkmtol.design.fosm import fosm_tolerances
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
-from pkmtol.error_model.parameters import default_set, parameter_set
-from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.parameters import default_set
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set
 from pkmtol.exceptions import (
     JointLimitError,
     KinematicsError,
@@ -133,12 +133,28 @@ def set_number(doc: dict[str, Any], key: str, value: float, spec: str | None = N
                 limb = node[step].get("name", str(step))
         path.append(str(step))
         if last:
-            if isinstance(node[step], bool) or not isinstance(node[step], int | float):
+            unit = _unit_of(node[step])  # a quantity written with its unit ("150 mm"): kept in it
+            if unit is not None:
+                node[step] = f"{float(value):.12g} {unit}"
+            elif isinstance(node[step], bool) or not isinstance(node[step], int | float):
                 raise SweepSpecError(what, f"{key!r} holds {node[step]!r}, not a number")
-            node[step] = float(value)
+            else:
+                node[step] = float(value)
         else:
             node = node[step]
     return limb if limb is not None and len(parts) > 2 and parts[2][0] == "dh" else None
+
+
+def _unit_of(value: Any) -> str | None:
+    """The unit of a TOML string ``"<number> <unit>"`` (e.g. ``[tool] length = "150 mm"``), else None."""
+    if not isinstance(value, str):
+        return None
+    number, _, unit = value.strip().partition(" ")
+    try:
+        float(number)
+    except ValueError:
+        return None
+    return unit.strip() or None
 
 
 def _index(node: list[Any], index: str, what: str, path: list[str]) -> int:
@@ -232,6 +248,7 @@ def synthesize(
     beta: float | None = None,
     executor: Executor | None = None,
     progress: Any = None,
+    tool_scope: str | None = None,
 ) -> Synthesis:
     """Evaluate every variant of ``varies`` (their Cartesian product) and the reference design.
 
@@ -242,6 +259,7 @@ def synthesize(
         beta: β of the tolerances (default: each variant's design β, ``design.design_beta``).
         executor: Where the variants run (None: serial).
         progress: Called with the number of variants done after each one (e.g. a progress bar).
+        tool_scope: A hybrid's compensation scope (``[tool] compensation``; default the file's).
 
     Raises:
         SweepSpecError: a key does not exist or holds no number, or too many variants.
@@ -250,6 +268,8 @@ def synthesize(
     folder = Path(folder)
     nominal = load_mechanism(folder)
     doc = read_doc(folder)
+    if tool_scope is not None and isinstance(doc.get("tool"), dict):
+        doc["tool"]["compensation"] = tool_scope  # --compensate-with
     kind = kind or default_set(nominal)
     texts = {lb.name: lb.urdf_path.read_text(encoding="utf-8") for lb in nominal.limbs if lb.urdf_path}
     count = int(np.prod([len(v.values) for v in varies])) if varies else 0
@@ -335,7 +355,7 @@ def variant_mechanism(
         q = chain.inverse(mech.task_space.grid()[0], raw).q_all
     split = np.split(q, chain.offsets[1:-1])
     limbs = [replace(lb, home=qi) for lb, qi in zip(mech.limbs, split, strict=True)]
-    return Mechanism.from_limbs(
+    closed = Mechanism.from_limbs(
         mech.name,
         limbs,
         mech.reference_point_m,
@@ -347,6 +367,7 @@ def variant_mechanism(
         description=mech.description,
         extra=mech.extra,
     )
+    return replace(closed, tool=mech.tool, tool_directions=mech.tool_directions)  # a hybrid's tool chain
 
 
 def evaluate_variant(task: _Task) -> Variant:
@@ -354,8 +375,8 @@ def evaluate_variant(task: _Task) -> Variant:
     t0 = time.perf_counter()
     try:
         mech = variant_mechanism(task.folder, task.doc, task.urdf_texts, task.values)
-        pset = parameter_set(mech, task.kind)
-        grid = sweep(mech, pset, mech.task_space.grid())
+        pset = machine_parameter_set(mech, task.kind)  # a hybrid: with its tool's, at the TCP
+        grid = grid_sweep(mech, pset)
     except PkmtolError as err:
         return Variant(
             values=task.values, reachable=False, reason=_reason(err), seconds=time.perf_counter() - t0

@@ -8,8 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set
 from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -75,8 +76,8 @@ def error_table(
     """
     if not isinstance(mechanism, Mechanism):
         raise InvalidArgumentError("mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism)")
-    pset = parameter_set(mechanism, kind or default_set(mechanism))
-    grid = sweep(mechanism, pset, mechanism.task_space.grid(), chain, progress=progress)
+    pset = machine_parameter_set(mechanism, kind)
+    grid = grid_sweep(mechanism, pset, chain, progress=progress)
     classes = grid.classify()
     unc = [i for i, c in enumerate(classes) if c == "uncompensatable"]
     cols = unc if unc else list(range(len(pset)))

@@ -22,9 +22,12 @@ from tqdm import tqdm
 
 from pkmtol.exceptions import InvalidArgumentError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.hybrid import HybridChain, task_grid
+from pkmtol.kinematics.hybrid_continuation import hybrid_continuation
 from pkmtol.kinematics.loops import frame_placements, loop_rows
 from pkmtol.model.limb import Limb
 from pkmtol.model.mechanism import Mechanism
+from pkmtol.model.tool import TOOL
 
 #: Singular values below this fraction of the largest count as zero in rank decisions.
 RANK_TOLERANCE = 1e-9
@@ -111,8 +114,10 @@ class CheckReport:
         limbs: Per-limb reports, in limb order.
         home_q: Home configuration refined to exact closure (Σ nq,) [rad or m].
         closure_rank: Rank of the closure Jacobian (shape (6(L-1), Σ nq)) at home.
-        points: One report per task-space grid point, in grid order.
-
+        points: One report per task-space grid point, in grid order (a hybrid: per target of
+            its TCP task, the TCP position in ``target_m``).
+        tool: A hybrid's tool chain (its joints and the ranges they use over the task grid;
+            ``twist_rank`` is the rank of its TCP Jacobian at home), None for a parallel module.
     """
 
     mechanism: Mechanism
@@ -120,6 +125,7 @@ class CheckReport:
     home_q: np.ndarray
     closure_rank: int
     points: tuple[PointReport, ...]
+    tool: LimbReport | None = None
 
     @property
     def n_joints(self) -> int:
@@ -187,12 +193,15 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
 
     points = []
     q_prev = home_q
-    grid = mechanism.task_space.grid()
+    grid = mechanism.task_space.grid() if mechanism.tool is None else np.zeros((0, 3))
     for target in tqdm(grid, desc="check", unit="point", disable=not progress, leave=False):
         point = _solve_point(chain, target, q_prev, home_q, passive)
         if point.q is not None:
             q_prev = point.q
         points.append(point)
+    tool = None
+    if mechanism.tool is not None:  # a hybrid: its TCP task, the wrist's joints beside the limbs'
+        points, tool = _hybrid_points(mechanism, chain, passive)
 
     reached = [p.q for p in points if p.q is not None]
     q_min = np.min(reached, axis=0) if reached else np.full(home_q.size, np.nan)
@@ -214,7 +223,44 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
         )
         rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
         limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
-    return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, tuple(points))
+    return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, tuple(points), tool)
+
+
+def _hybrid_points(
+    mechanism: Mechanism, chain: ClosedChain, passive: np.ndarray
+) -> tuple[list[PointReport], LimbReport]:
+    """A hybrid's task grid solved by continuation: one report per target, and the tool chain's."""
+    tool = mechanism.tool
+    assert tool is not None
+    hc = HybridChain(mechanism, chain)
+    tcp, axes = task_grid(mechanism)
+    points, q_tool = [], []
+    for k, sol in enumerate(hybrid_continuation(hc, tcp, axes)):
+        if isinstance(sol, KinematicsError):
+            points.append(PointReport(tcp[k].copy(), str(sol), None, np.nan, np.nan))
+            continue
+        q = sol.module.q_all
+        forward = _condition(chain._evaluate(q, None)[1][:, passive])
+        points.append(PointReport(tcp[k].copy(), None, q, sol.condition, forward))
+        q_tool.append(sol.q_tool)
+    lo = np.min(q_tool, axis=0) if q_tool else np.full(tool.nq, np.nan)
+    hi = np.max(q_tool, axis=0) if q_tool else np.full(tool.nq, np.nan)
+    joints = tuple(
+        JointReport(
+            name=name,
+            kind=kind,
+            actuated=j in tool.actuated,
+            lower=float(tool.model.lowerPositionLimit[j]),
+            upper=float(tool.model.upperPositionLimit[j]),
+            grid_min=float(lo[j]),
+            grid_max=float(hi[j]),
+        )
+        for j, (name, kind) in enumerate(zip(tool.joint_names, tool.joint_kinds, strict=True))
+    )
+    data = tool.model.createData()
+    jt = pin.computeFrameJacobian(tool.model, data, tool.home, tool.tcp_frame, pin.LOCAL)
+    rank = _rank(jt)
+    return points, LimbReport(TOOL, tool.urdf_path, joints, rank, 6 - rank)
 
 
 def limb_twists(limb: Limb, q: np.ndarray) -> np.ndarray:

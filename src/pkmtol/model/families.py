@@ -26,6 +26,7 @@ import pkmtol.values as values
 from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.model.dh import DHTable, forward
 from pkmtol.model.dh_derivation import Axis, limb_table, radial_tangential, rounded, unit, ups_axes
+from pkmtol.model.wrist_draft import DESCRIPTIONS, WRIST_HELP, wrist_fields
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,7 @@ class RobotDraft:
     task_space: Mapping[str, Any]
     dimensions: Mapping[str, Any] = field(default_factory=dict)
     comment: tuple[str, ...] = ()
+    tool: Mapping[str, Any] | None = None
 
 
 def _draft(
@@ -395,6 +397,58 @@ def r2rps_ups(
     )
 
 
+def r2rps_ups_wrist(
+    ups_base: float = 0.5,
+    rps_base: float = 0.45,
+    ups_platform: float = 0.25,
+    rps_platform: float = 0.25,
+    height: float = 0.75,
+    offset: float = 0.3,
+    leg_stroke: tuple[float, float] = (0.4, 1.6),
+    centre_stroke: tuple[float, float] = (0.3, 1.6),
+    c_height: float = 0.15,
+    nose: float = 0.12,
+    tool_length: float = 0.15,
+    task_radius: float = 0.3,
+    task_z: tuple[float, float] = (1.15, 1.3),
+    task_center_x: float = 0.19,
+) -> RobotDraft:
+    """The seed robot (:func:`r2rps_ups`) with the A/C wrist (:mod:`pkmtol.model.wrist_draft`)."""
+    module = r2rps_ups(
+        ups_base, rps_base, ups_platform, rps_platform, height, offset, leg_stroke, centre_stroke
+    )
+    fields = wrist_fields(
+        module.comment, offset, c_height, nose, tool_length, task_radius, task_z, task_center_x
+    )
+    return RobotDraft(
+        "r2rps_ups_wrist", DESCRIPTIONS["r2rps_ups_wrist"], module.limbs, module.reference_point_m, **fields
+    )
+
+
+def tricept_wrist(
+    base_radius: float = 0.45,
+    platform_radius: float = 0.18,
+    height: float = 0.9,
+    offset: float = 0.3,
+    leg_stroke: tuple[float, float] = (0.6, 1.4),
+    centre_stroke: tuple[float, float] = (0.5, 1.3),
+    c_height: float = 0.15,
+    nose: float = 0.12,
+    tool_length: float = 0.15,
+    task_radius: float = 0.2,
+    task_z: tuple[float, float] = (1.35, 1.5),
+    task_center_x: float = 0.19,
+) -> RobotDraft:
+    """The Tricept (:func:`tricept`) with the A/C wrist (:mod:`pkmtol.model.wrist_draft`)."""
+    module = tricept(base_radius, platform_radius, height, offset, leg_stroke, centre_stroke)
+    fields = wrist_fields(
+        module.comment, offset, c_height, nose, tool_length, task_radius, task_z, task_center_x
+    )
+    return RobotDraft(
+        "tricept_wrist", DESCRIPTIONS["tricept_wrist"], module.limbs, module.reference_point_m, **fields
+    )
+
+
 def _rps(b: float, e: float) -> list[list[float]]:
     return [
         [0, 0, 0, 90],
@@ -459,6 +513,8 @@ SUMMARY = {
     "sprint_z3": "Sprint Z3 head 3-PRS: three actuated sliders on parallel rails, R then S",
     "exechon": "Exechon 2-UPR&SPR: two UPR legs sharing their first U axis, one SPR leg",
     "r2rps_ups": "the paper's R(2-RPS&RP)&UPS (the seed robot): one UPS and two RPS legs, a passive UP limb",
+    "r2rps_ups_wrist": "the seed robot with its A/C wrist and spindle: the paper's whole 5-DOF hybrid robot",
+    "tricept_wrist": "the Tricept with its classic A/C wrist and spindle: a 5-axis hybrid machine",
 }
 
 #: The families: name → (function, its dimensions with defaults).
@@ -483,14 +539,11 @@ _COMMON = {
     "task_radius": "radius of the cylindrical task space of P [m]",
     "task_z": "height range of the task space: MIN MAX [m]",
 }
-_register(
-    tricept,
-    {
-        **_COMMON,
-        "base_radius": "radius of the leg U joints on the base [m]",
-        "platform_radius": "radius of the leg S joints on the platform [m]",
-    },
-)
+TRICEPT_HELP = {
+    "base_radius": "radius of the leg U joints on the base [m]",
+    "platform_radius": "radius of the leg S joints on the platform [m]",
+}
+_register(tricept, {**_COMMON, **TRICEPT_HELP})
 _register(
     sprint_z3,
     {
@@ -512,17 +565,19 @@ _register(
         "spr_platform": "SPR platform revolute at x = −this in the platform frame [m]",
     },
 )
+FAMILY_HELP = {
+    "ups_base": "b_1: the UPS U joint at x = this [m]",
+    "rps_base": "|b_2| = |b_3|: the RPS base R joints at y = ±this [m]",
+    "ups_platform": "e_1: the UPS S joint along the platform's x [m]",
+    "rps_platform": "|e_2| = |e_3|: the RPS S joints along the platform's y [m]",
+    "height": "height of O' (limb 4's slide) at home [m]",
+}
+_register(r2rps_ups, {**_COMMON, **FAMILY_HELP})
+
 _register(
-    r2rps_ups,
-    {
-        **_COMMON,
-        "ups_base": "b_1: the UPS U joint at x = this [m]",
-        "rps_base": "|b_2| = |b_3|: the RPS base R joints at y = ±this [m]",
-        "ups_platform": "e_1: the UPS S joint along the platform's x [m]",
-        "rps_platform": "|e_2| = |e_3|: the RPS S joints along the platform's y [m]",
-        "height": "height of O' (limb 4's slide) at home [m]",
-    },
+    r2rps_ups_wrist, {**_COMMON, **{k: v for k, v in FAMILY_HELP.items() if k != "offset"}, **WRIST_HELP}
 )
+_register(tricept_wrist, {**_COMMON, **TRICEPT_HELP, **WRIST_HELP})
 
 
 def draft(family: str, **dimensions: Any) -> RobotDraft:

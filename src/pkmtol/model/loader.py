@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from collections.abc import Mapping
@@ -20,6 +21,7 @@ from pkmtol.model.limb import make_limb
 from pkmtol.model.mechanism import DEFAULT_BETAS, Mechanism
 from pkmtol.model.reading import TomlReader, check_finite, load_urdf, read_text
 from pkmtol.model.taskspace import MAX_GRID_POINTS, TaskSpace
+from pkmtol.model.tool_reading import TOOL_TASK_KEYS, read_tool, read_tool_directions
 from pkmtol.units import parse_angle, parse_length
 from pkmtol.values import MAX_LENGTH_M
 
@@ -89,12 +91,22 @@ def _from_doc(
     r.get("description", str, default="")
     p_ref = r.lengths("reference_point.position_m", 3)
     kind = r.get("task.kind", str, default="position")
-    if kind not in ("position", "planar"):
+    if kind not in ("position", "planar", "tool"):
         r.fail(
             "task.kind",
-            f"unknown task kind {kind!r}; supported: 'position' (of P) and 'planar' (P in a plane, "
-            "with task.normal)",
+            f"unknown task kind {kind!r}; supported: 'position' (of P), 'planar' (P in a plane, "
+            "with task.normal) and 'tool' (the TCP of a [tool] chain)",
         )
+    if (kind == "tool") != ("tool" in doc):
+        r.fail(
+            "task.kind" if "tool" in doc else "tool",
+            "a [tool] table needs task.kind = 'tool' (the task is then the TCP)"
+            if "tool" in doc
+            else "task.kind = 'tool' needs a [tool] table (the tool chain on the platform)",
+        )
+    for key in TOOL_TASK_KEYS:
+        if kind != "tool" and key in dict(doc.get("task") or {}):
+            r.fail(f"task.{key}", "belongs to task.kind = 'tool' (the tool directions); remove it")
     task_space = read_task_space(r)
     normal = None
     if kind == "planar":
@@ -188,7 +200,7 @@ def _from_doc(
         j for limb in limbs for j in (*limb.joint_names, limb.attach_name, *(lp.name for lp in limb.loops))
     ]
     drawing = read_drawing(r.get("drawing", dict, default={}), path, joints)
-    return Mechanism.from_limbs(
+    mech = Mechanism.from_limbs(
         name,
         limbs,
         p_ref,
@@ -207,6 +219,17 @@ def _from_doc(
         check_home_closure=check_home_closure,
         task_normal=normal,
     )
+    if kind != "tool":
+        return mech
+    # [tool]: the serial chain on the platform; the task is its TCP (docs/hybrid.md)
+    tool_doc = r.get("tool", dict)
+    dh = read_dh(TomlReader(path, tool_doc, prefix="tool.")) if "dh" in tool_doc else None
+    tool = read_tool(r, folder, platform_link, mech.n_actuators, dh)
+    scope = r.get("tool.compensation", str, default="machine")
+    if scope not in ("machine", "module"):
+        r.fail("tool.compensation", f"expected 'machine' or 'module', got {scope!r}")
+    extra = {**mech.extra, "tool_scope": scope}
+    return dataclasses.replace(mech, tool=tool, tool_directions=read_tool_directions(r, tool), extra=extra)
 
 
 def read_cost(r: TomlReader) -> dict:

@@ -28,7 +28,8 @@ from pkmtol.model.constraint_limbs import limbs_from_constraint_models
 from pkmtol.model.constraints import ConstrainedModel, constraint_models
 from pkmtol.model.limb import Limb, make_limb
 from pkmtol.model.loop_tree import LoopTree
-from pkmtol.model.taskspace import TaskSpace
+from pkmtol.model.taskspace import TaskSpace, ToolDirections
+from pkmtol.model.tool import Tool
 from pkmtol.model.tree_from_limbs import LimbRaw, tree_from_mechanism
 
 #: Mismatch allowed between the limbs' platform frames at ``home`` before Newton refines it.
@@ -55,6 +56,11 @@ class Mechanism:
         task_normal: For a planar task (``task.kind = "planar"``), the unit normal (3,) in K of the
             plane P moves in: the accuracy index is the in-plane norm of P's error; None: the
             position of P in space.
+        tool: For a hybrid machine (``task.kind = "tool"``), the serial tool chain on the
+            platform (the wrist, the spindle, the TCP; :mod:`pkmtol.model.tool`); None: the
+            parallel module alone, whose task point is P.
+        tool_directions: The tool axes the task must reach (a cone, for a tool chain with two
+            actuated wrist joints); None: the TCP position only (a locked wrist, 3-axis work).
     """
 
     name: str
@@ -68,6 +74,8 @@ class Mechanism:
     description: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
     task_normal: np.ndarray | None = None
+    tool: Tool | None = None
+    tool_directions: ToolDirections | None = None
 
     @property
     def task_projection(self) -> np.ndarray:
@@ -122,6 +130,10 @@ class Mechanism:
         values.number("design_beta", self.design_beta, positive=True)
         if not isinstance(self.description, str):
             raise InvalidArgumentError("description", self.description, "expected a string")
+        if self.tool is not None and not isinstance(self.tool, Tool):
+            raise InvalidArgumentError("tool", self.tool, "expected a pkmtol.model.tool.Tool (make_tool)")
+        if self.tool_directions is not None and not isinstance(self.tool_directions, ToolDirections):
+            raise InvalidArgumentError("tool_directions", self.tool_directions, "expected a ToolDirections")
 
     @property
     def n_joints(self) -> int:

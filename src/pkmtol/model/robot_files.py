@@ -66,11 +66,17 @@ def render_toml(robot: RobotDraft, name: str, command: str = "") -> str:
         f"position_m = {_list(robot.reference_point_m)}",
         "",
         "[task]",
-        'kind = "position"',
+        'kind = "position"' if robot.tool is None else 'kind = "tool"',
+        *_tool_task(robot),
         "",
         "[task_space]",
         f'kind = "{robot.task_space["kind"]}"',
         f"radius_m = {_num(robot.task_space['radius_m'])}",
+        *(
+            [f"center_xy_m = {_list(robot.task_space['center_xy_m'])}"]
+            if "center_xy_m" in robot.task_space
+            else []
+        ),
         f"z_m = {_list(robot.task_space['z_m'])}",
         f"layers = {int(robot.task_space['layers'])}",
         "rings = [" + ", ".join(str(int(k)) for k in robot.task_space["rings"]) + "]",
@@ -79,6 +85,7 @@ def render_toml(robot: RobotDraft, name: str, command: str = "") -> str:
         'target = "0.05 mm"',
         "beta = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]",
         "design_beta = 2.0",
+        *_tool_table(robot),
     ]
     for limb in robot.limbs:
         t = limb.table
@@ -105,6 +112,55 @@ def render_toml(robot: RobotDraft, name: str, command: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
+def _tool_task(robot: RobotDraft) -> list[str]:
+    """The task's tool directions of a hybrid (``[task] axis, cone, rings``)."""
+    if robot.tool is None:
+        return []
+    t = robot.tool
+    return [
+        f"axis = {_list(t['axis'], 8)}",
+        f"cone = {_str(t['cone'])}",
+        "rings = [" + ", ".join(str(int(k)) for k in t["rings"]) + "]",
+    ]
+
+
+def _tool_table(robot: RobotDraft) -> list[str]:
+    """A hybrid's ``[tool]`` table and its ``[tool.dh]`` rows (angles in degrees)."""
+    if robot.tool is None:
+        return []
+    t = robot.tool
+    dh = t["table"]
+    lines = [
+        "",
+        "# ---- the tool chain on the platform: the wrist, the spindle and the TCP (docs/hybrid.md)",
+        "[tool]",
+        f"urdf = {_str(t['urdf'])}",
+        f"actuated = {_strings(t['actuated'])}",
+        f"nose_frame = {_str(t['nose_frame'])}",
+        f"length = {_str(t['length'])}",
+        f"home = {_list(t['home'], 6)}",
+        "",
+        "[tool.dh]",
+        f"joint_types = {_strings(dh.joint_types)}",
+        f"joint_names = {_strings(dh.joint_names)}",
+        "# [θ_j (deg, constant part), d_j (m), a_j (m), φ_j (deg)] for links 1..n+1",
+        "links = [",
+    ]
+    for th, d, a, ph in dh.links:
+        lines.append(f"  {_list([math.degrees(th), d, a, math.degrees(ph)])},")
+    lines += [
+        "]",
+        f"end = {_list([dh.end[0], math.degrees(dh.end[1])])}",
+        "limits = ["
+        + ", ".join(
+            _list([math.degrees(lo), math.degrees(hi)] if kind == "R" else [lo, hi])
+            for kind, (lo, hi) in zip(dh.joint_types, dh.limits, strict=True)
+        )
+        + "]",
+    ]
+    return lines
+
+
 def urdfs_from_toml(folder: Path | str) -> dict[Path, str]:
     """URDF text per limb file, from the D–H tables of ``folder/mechanism.toml`` (limbs without one: none).
 
@@ -129,4 +185,16 @@ def urdfs_from_toml(folder: Path | str) -> dict[Path, str]:
         lr = TomlReader(path, ld, prefix=f"limbs[{i}].")
         name = lr.get("name", str)
         out[folder / lr.get("urdf", str)] = to_urdf(read_dh(lr), name, base, platform, name)
+    tool = r.get("tool", dict, default={})
+    if "dh" in tool:  # a hybrid's tool chain: platform → spindle nose (docs/hybrid.md)
+        tr = TomlReader(path, tool, prefix="tool.")
+        nose = tr.get("nose_frame", str)
+        text = to_urdf(read_dh(tr), "wrist", platform, nose, "wrist")
+        out[folder / tr.get("urdf", str)] = text.replace(_PLATE, _SPINDLE)
     return out
+
+
+#: The plate :func:`~pkmtol.model.dh.to_urdf` draws on its end link, and the spindle a tool chain
+#: draws there instead (a cylinder behind the nose, along the tool axis).
+_PLATE = '<cylinder radius="0.3" length="0.02" />'
+_SPINDLE = '<cylinder radius="0.04" length="0.12" />'

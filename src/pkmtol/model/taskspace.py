@@ -134,3 +134,75 @@ class TaskSpace:
         z = rng.uniform(*self.z_range_m, size=count)
         cx, cy = self.center_xy_m
         return np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a), z])
+
+
+@dataclass(frozen=True)
+class ToolDirections:
+    """The tool orientations of a hybrid machine's task (``task.kind = "tool"``): a cone of axes.
+
+    The tool axis (unit vector in K, from the spindle towards the tool tip) must reach every
+    direction within ``half_angle_rad`` of ``axis``. The grid is the cone's axis, then rings of
+    ``rings[k]`` directions at the angle ``half_angle_rad·(k+1)/len(rings)`` from it (the spin
+    about the tool axis is free, so a direction is a whole orientation of the task).
+
+    Attributes:
+        axis: Unit vector (3,) in K: the cone's axis.
+        half_angle_rad: The cone's half-angle [rad] (0: one direction).
+        rings: Directions per ring, inner to outer (empty: the axis only).
+    """
+
+    axis: tuple[float, float, float]
+    half_angle_rad: float = 0.0
+    rings: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        """Check the fields (InvalidArgumentError naming the first wrong one); normalise the axis."""
+        a = values.vector("ToolDirections.axis", self.axis, 3)
+        norm = float(np.linalg.norm(a))
+        if not norm > 1e-12:
+            raise InvalidArgumentError("ToolDirections.axis", self.axis, "expected a non-zero [x, y, z] in K")
+        angle = values.number("ToolDirections.half_angle_rad", self.half_angle_rad)
+        if not 0.0 <= angle < np.pi / 2:
+            raise InvalidArgumentError(
+                "ToolDirections.half_angle_rad", angle, "the cone's half-angle must be in [0, 90°)"
+            )
+        if isinstance(self.rings, str) or not isinstance(self.rings, tuple | list):
+            raise InvalidArgumentError(
+                "ToolDirections.rings", self.rings, "expected directions per ring, e.g. (6,)"
+            )
+        for k in self.rings:
+            values.count("ToolDirections.rings", k, low=1)
+        if self.rings and angle == 0.0:
+            raise InvalidArgumentError(
+                "ToolDirections.rings", self.rings, "rings need a cone half-angle > 0 (task.cone)"
+            )
+        object.__setattr__(self, "axis", tuple(float(x) for x in a / norm))
+        object.__setattr__(self, "half_angle_rad", float(angle))
+        object.__setattr__(self, "rings", tuple(int(k) for k in self.rings))
+
+    def _frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The axis and two unit vectors orthogonal to it (a right-handed frame)."""
+        a = np.asarray(self.axis)
+        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+        u = np.cross(a, helper)
+        u /= np.linalg.norm(u)
+        return a, u, np.cross(a, u)
+
+    def grid(self) -> np.ndarray:
+        """Directions (k, 3), unit vectors in K: the axis, then each ring."""
+        a, u, v = self._frame()
+        out = [a]
+        for k, count in enumerate(self.rings):
+            t = self.half_angle_rad * (k + 1) / len(self.rings)
+            for i in range(count):
+                phi = 2.0 * np.pi * i / count
+                out.append(np.cos(t) * a + np.sin(t) * (np.cos(phi) * u + np.sin(phi) * v))
+        return np.array(out)
+
+    def sample(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """Directions (count, 3) uniformly distributed over the cone's cap of the unit sphere."""
+        a, u, v = self._frame()
+        c = 1.0 - rng.random(count) * (1.0 - np.cos(self.half_angle_rad))
+        s = np.sqrt(np.clip(1.0 - c * c, 0.0, None))
+        phi = 2.0 * np.pi * rng.random(count)
+        return c[:, None] * a + s[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)

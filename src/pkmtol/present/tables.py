@@ -21,6 +21,7 @@ import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
+from pkmtol.present.hybrid_tables import hybrid_ideal_text, sub_assemblies, sub_assembly_lines
 from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
 from pkmtol.units import display, display_unit
 
@@ -64,7 +65,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
     """The design as a JSON-ready dict (SI units, unit named per field)."""
     trad = dict(zip(r.traditional.columns.tolist(), r.traditional.tolerance.tolist(), strict=True))
     params = []
-    assembly = r.grid.incompatible()
+    assembly, groups = r.grid.incompatible(), sub_assemblies(r)  # groups: a hybrid's module/wrist/tool
     for i, p in enumerate(r.pset.parameters):
         tol = r.tolerances[i]
         params.append(
@@ -72,6 +73,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
                 "name": p.name,
                 "unit": p.unit,
                 "class": r.classes[i],
+                **({} if groups is None else {"sub_assembly": groups[i]}),
                 "sensitivity": float(r.sensitivity[i]),
                 "sensitivity_unit": f"m/{p.unit}",
                 "sensitivity_uncompensated": float(r.sensitivity_uncompensated[i]),
@@ -238,7 +240,8 @@ def compensation_lines(r: DesignResult) -> list[str]:
     out = [
         f"compensation: {r.compensation} — "
         + {
-            "ideal": "the paper's Eq. 25 (the controller knows the compensatable errors exactly)",
+            "ideal": hybrid_ideal_text(r)
+            or "the paper's Eq. 25 (the controller knows the compensatable errors exactly)",
             "calibrated": "a least-squares calibration from tracker measurements",
             "none": "no compensation (the traditional method)",
         }[r.compensation]
@@ -382,12 +385,13 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
     out = [
         ("# " if markdown else "") + f"pkmtol allocation — {r.mechanism.name}",
         "",
-        f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at P; parameter set '{r.pset.kind}' "
+        f"required accuracy Δλ* = {r.target_m * 1e3:g} mm at {'the TCP' if r.mechanism.tool else 'P'}; "
+        f"parameter set '{r.pset.kind}' "
         f"({len(r.pset)} parameters: {counts['uncompensatable']} uncompensatable, "
         f"{counts['compensatable']} compensatable, {counts['absorbed']} absorbed)",
         *overconstraint_lines(r.grid, r.pset.names),
         "most error-sensitive point (analytic σ[Δλ], η_c ~ N(0,1) SI): "
-        f"P = {_point(r.worst_point_m)}, "
+        f"{'TCP' if r.mechanism.tool else 'P'} = {_point(r.worst_point_m)}, "
         f"σ[Δλ] = {r.search.sigma_analytic_m[r.worst_index]:.5g} m per unit error (m or rad) analytic, "
         f"{r.search.sigma_sampled_m[r.worst_index]:.5g} from {r.search.samples} samples "
         f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
@@ -437,7 +441,7 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
     ]
     if r.orientation is not None and (r.orientation.target_rad is not None or r.compensation != "ideal"):
         out += [h("Orientation of the tool axis"), *orientation_lines(r)]
-    out += signoff_text(r, table, h)
+    out += sub_assembly_lines(r, table, h, units) + signoff_text(r, table, h)  # a hybrid: by sub-assembly
     out += [
         h("Claimed vs true reliability of the FOSM designs (R in %)"),
         table(claim_rows(r)),

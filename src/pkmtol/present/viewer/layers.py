@@ -17,6 +17,7 @@ from pkmtol.present.viewer.backend import require_meshcat
 from pkmtol.present.viewer.colours import FAILED_RGB, P_RGB, SAFE_RGB, hex_colour, viridis
 from pkmtol.present.viewer.geometry import Scene, rod, rod_transform, skeleton_geometry, translation, triad
 from pkmtol.present.viewer.options import GLYPH_SPACING, ROOT, SceneOptions
+from pkmtol.present.viewer.tool_layer import draw_tool, place_tool
 
 #: Documented API of this module (the other names serve the scene's own modules).
 __all__ = ["SpheresLayer", "VerificationLayer"]
@@ -124,6 +125,9 @@ def draw_robot(
         scene.nodes.append(root)
         scene.nodes.extend(f"{root}/visuals/{g.name}" for g in visual.geometryObjects)
         vizs.append((viz, visual))
+    tool = draw_tool(scene, result, int(result.worst_index))  # a hybrid: the wrist and the spindle
+    if tool is not None:
+        paths.append(tool[0])
     if not animate:
         return paths, 0
     meshcat = require_meshcat()
@@ -139,6 +143,8 @@ def draw_robot(
                 for gid, g in enumerate(visual.geometryObjects):
                     t = applyScalingOnHomegeneousTransform(viz.visual_data.oMg[gid].homogeneous, g.meshScale)
                     f[f"{paths[i]}/visuals/{g.name}"].set_transform(t)
+            if tool is not None:
+                place_tool(f, tool[0], tool[1], tool[2], result.grid, k)
             if with_reference:
                 _reference_frames(f, pk)
     scene.vis.set_animation(anim, play=False)
