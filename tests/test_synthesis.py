@@ -33,23 +33,14 @@ WRIST_SUMMARY = {
     0.3: ((300.0, 519.6, 900.0), 0.5407, 14.45),
     0.4: ((300.0, 519.6, 900.0), 0.4954, 14.47),
 }
-#: Its tolerance table at β = 2 (mm, mrad; None = free), one column per l = 0.1 … 0.4 m.
-WRIST_TOLERANCES = {
-    "δθ_{1,4}": (None, 0.1902, 0.0980, 0.0837),
-    "δd_{1,4}": (0.0257, 0.0206, 0.0237, 0.0278),
-    "δa_{1,4}": (0.0197, 0.0194, 0.0305, 0.0679),
-    "δφ_{1,4}": (None, 1.1023, 0.2939, 0.2511),
-    "δd_{2,4}": (0.0171, 0.0137, 0.0146, 0.0162),
-    "δa_{2,4}": (0.0257, 0.0217, 0.0267, 0.0295),
-    "δφ_{2,4}": (None, 0.1874, 0.0929, 0.0794),
-    "δd_{3,4}": (0.0197, 0.0186, 0.0262, 0.0522),
-    "δa_{3,4}": (0.0143, 0.0116, 0.0128, 0.0142),
-    "δφ_{3,4}": (None, 0.3498, 0.1934, 0.1653),
-    "δθ_{4,4}": (None, 0.2220, 0.1060, 0.0905),
-    "δa_{4,4}": (0.0143, 0.0116, 0.0128, 0.0142),
-    "δφ_{4,4}": (0.0201, 0.0199, 0.0286, 0.0523),
-    "δθ_{e,4}": (None, 0.2220, 0.1060, 0.0905),
-}
+#: The uncompensatable parameters of every reachable variant. The script's tolerance table left the
+#: ones without effect at the worst pose free; the sweep now runs allocate's allocation, which
+#: tolerances them at their own most sensitive pose (issue 29.1; tests/test_pipeline.py compares
+#: the sweep with allocate on a variant), so the script's numbers are no longer the sweep's.
+WRIST_NAMES = (
+    "δθ_{1,4}", "δd_{1,4}", "δa_{1,4}", "δφ_{1,4}", "δd_{2,4}", "δa_{2,4}", "δφ_{2,4}",
+    "δd_{3,4}", "δa_{3,4}", "δφ_{3,4}", "δθ_{4,4}", "δa_{4,4}", "δφ_{4,4}", "δθ_{e,4}",
+)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -121,20 +112,17 @@ def test_reproduces_the_wrist_offset_study(wrist):
     assert [v.values[WRIST.split("=")[0]] for v in wrist.variants] == [0.1, 0.2, 0.3, 0.4, 0.5]
     for var in wrist.variants[:4]:
         l_m = var.values[WRIST.split("=")[0]]
-        point, sigma_unit, sigma_ref = WRIST_SUMMARY[l_m]
+        point, sigma_unit, _ = WRIST_SUMMARY[l_m]  # σ with the reference tolerances: see WRIST_NAMES
         p = var.worst_point_m * 1e3
         assert (round(abs(p[0]), 1), round(abs(p[1]), 1), round(p[2], 1)) == point
         assert round(var.sigma_unit_m, 4) == sigma_unit
-        assert round(var.sigma_reference_m * 1e6, 2) == sigma_ref
-        assert var.names == tuple(WRIST_TOLERANCES)
-        for name, t, unit in zip(var.names, var.tolerances, var.units, strict=True):
-            expected = WRIST_TOLERANCES[name][int(round(10 * l_m)) - 1]
-            assert unit in ("m", "rad")
-            assert (None if not np.isfinite(t) else round(1e3 * t, 4)) == expected, (l_m, name)
+        assert var.names == WRIST_NAMES
+        assert set(var.units) <= {"m", "rad"}
+        assert np.all(np.isfinite(var.tolerances)) and np.all(var.tolerances > 0), l_m
         assert var.cost > 0
     last = wrist.variants[4]
     assert not last.reachable and last.reason == "joint limb1_p3 out of its limits"
-    assert wrist.reference.names == tuple(WRIST_TOLERANCES)
+    assert wrist.reference.names == WRIST_NAMES
     np.testing.assert_array_equal(wrist.reference.tolerances, wrist.variants[2].tolerances)
 
 
@@ -184,7 +172,7 @@ def test_a_grid_of_variants_on_every_executor():
 # --- the command ----------------------------------------------------------------------------------
 
 
-def test_sweep_command_prints_and_writes_the_tables(tmp_path, capsys):
+def test_sweep_command_prints_and_writes_the_tables(tmp_path, capsys, wrist):
     out = tmp_path / "sweep"
     assert (
         main(
@@ -211,7 +199,8 @@ def test_sweep_command_prints_and_writes_the_tables(tmp_path, capsys):
     assert float(rows[1][rows[0].index("sigma_unit_m")]) == pytest.approx(0.5978, abs=5e-5)
     doc = json.loads((out / "sweep.json").read_text(encoding="utf-8"))
     assert doc["variants"][0]["reachable"] and not doc["variants"][1]["reachable"]
-    assert doc["variants"][0]["tolerances_si"]["δd_{1,4}"] == pytest.approx(2.06e-5, abs=1e-7)
+    l02 = wrist.variants[1]  # l = 0.2 m, the library's answer (tests/test_pipeline.py: = allocate's)
+    assert doc["variants"][0]["tolerances_si"]["δd_{1,4}"] == l02.tolerances[l02.names.index("δd_{1,4}")]
     assert doc["reference"]["worst_point_m"] == pytest.approx([0.3, 0.5196152, 0.9], abs=1e-6)
 
 

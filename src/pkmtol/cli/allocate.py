@@ -19,6 +19,7 @@ from pkmtol.cli.common import (
 )
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
+from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
@@ -80,10 +81,11 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--method",
         choices=["fosm", "exact", "cost"],
-        default="fosm",
-        help="fosm: the paper's Eq. 20 (default); exact: equal-effect shape scaled so "
-        "that the exact reliability equals Φ(β); cost: cheapest tolerances with exact "
-        "reliability ≥ Φ(β) at every grid pose",
+        default=DEFAULT_METHOD,
+        help="fosm: the paper's Eq. 20 (one-pose FOSM at the design point); exact: equal-effect "
+        "shape scaled so that the exact reliability of the linear model equals Φ(β) where "
+        "--criterion says; cost: cheapest tolerances with exact reliability ≥ Φ(β) at every grid "
+        f"pose (default {DEFAULT_METHOD})",
     )
     p.add_argument(
         "--criterion",
@@ -214,7 +216,7 @@ def _run(args: argparse.Namespace) -> int:
             exact_samples=args.exact_samples,
             seed=args.seed,
             method=args.method,
-            criterion=args.criterion or "every",
+            criterion=args.criterion or DEFAULT_CRITERION,
             progress=show_progress(args.no_progress),
             executor=executor_from(args),
             compensation=args.compensation,

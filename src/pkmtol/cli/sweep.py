@@ -7,8 +7,10 @@ import sys
 from pathlib import Path
 
 from pkmtol.cli.common import add_executor_options, executor_from
+from pkmtol.design.exact import CRITERIA
+from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, METHODS
 from pkmtol.design.synthesis import check_keys, parse_vary, read_doc, synthesize
-from pkmtol.exceptions import FiguresError
+from pkmtol.exceptions import FiguresError, InvalidArgumentError
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.synthesis import summary_text, write_sweep
 from pkmtol.present.tables import check_output_folder
@@ -21,8 +23,9 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         help="dimensional synthesis: reachability, worst σ[Δλ], tolerances and cost per design variant",
         description="Vary numbers of mechanism.toml (dimensions, D–H entries, the reference point, the "
         "task space) over a grid and run the accuracy design of every variant: whether the task "
-        "space is reachable, the worst σ[Δλ] (every uncompensatable error ~ N(0, 1)), the FOSM "
-        "tolerances at the design β, σ[Δλ] when the tolerances of the robot as given are kept, and "
+        "space is reachable, the worst σ[Δλ] (every uncompensatable error ~ N(0, 1)), the tolerances "
+        "at the design β (the same allocation as allocate, --method below), σ[Δλ] when the "
+        "tolerances of the robot as given are kept, and "
         "the cost of the tolerances. URDFs of limbs whose D–H table changes are regenerated in "
         "memory. Writes sweep.csv, sweep.json and sweep.png/.svg into --out.",
     )
@@ -47,11 +50,29 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="a hybrid machine: which actuators compensate (default: [tool] compensation, else machine)",
     )
+    p.add_argument(
+        "--method",
+        choices=list(METHODS),
+        default=DEFAULT_METHOD,
+        help=f"the design method of every variant, as allocate --method (default {DEFAULT_METHOD})",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=list(CRITERIA),
+        default=None,
+        help="only with --method exact: where Φ(β) must hold, as allocate --criterion (default every)",
+    )
     add_executor_options(p)
     p.set_defaults(run=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.criterion is not None and args.method != "exact":
+        raise InvalidArgumentError(
+            "--criterion",
+            args.criterion,
+            f"only --method exact reads it; --method {args.method} would ignore it",
+        )
     varies = [parse_vary(spec) for spec in args.vary]
     load_mechanism(args.robot)  # a robot that cannot load fails before any output
     check_keys(read_doc(args.robot), varies)
@@ -74,6 +95,8 @@ def _run(args: argparse.Namespace) -> int:
         executor,
         progress=lambda n: bar.update(1),
         tool_scope=args.compensate_with,
+        method=args.method,
+        criterion=args.criterion or DEFAULT_CRITERION,
     )
     bar.close()
     print(summary_text(result), end="")

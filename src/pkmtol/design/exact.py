@@ -23,6 +23,7 @@ from scipy import special
 from pkmtol.design.reliability import exact_reliability_many
 from pkmtol.design.verification import LINEAR_CHUNK, cyclic_products, failure_counts, sample_errors
 from pkmtol.error_model.accuracy import vector_norms
+from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.executor import Executor, map_chunks
 
@@ -309,4 +310,47 @@ def _exact_cells(task: tuple) -> tuple[float, np.ndarray]:
     J_worst, J_task, s, target_m, ew, et = task
     return float(grid_reliability(J_worst[None], s, target_m, ew)[0]), grid_reliability(
         J_task, s, target_m, et
+    )
+
+
+def noise_covariance(maps: AccuracyMaps) -> np.ndarray | None:
+    """``σ_m² N Nᵀ`` per pose (m, 3, 3) [m²], or None without a calibration."""
+    if not maps.position_noise.shape[2] or maps.noise_m <= 0:
+        return None
+    N = maps.position_noise
+    return maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
+
+
+def claims_stage(
+    maps: AccuracyMaps,
+    random_maps: AccuracyMaps,
+    worst: int,
+    unc: np.ndarray,
+    tolerances: np.ndarray,
+    betas: tuple[float, ...],
+    target_m: float,
+    samples: int,
+    rng: np.random.Generator,
+    claim_poses: int,
+    executor: Executor | None = None,
+) -> list[ClaimRow]:
+    """The claims stage: :func:`claimed_vs_true` of the FOSM designs of the β series.
+
+    At the design pose ``worst`` of the grid ``maps`` and over the first ``claim_poses`` random
+    task-space poses of ``random_maps``; ``tolerances`` is (n_params, len(betas)), ``unc`` its rows
+    that are toleranced; the calibration's noise enters as a fixed covariance.
+    """
+    cov = noise_covariance(maps)
+    rnd_cov = noise_covariance(random_maps)
+    return claimed_vs_true(
+        maps.position[worst][:, unc],
+        random_maps.position[:claim_poses][:, :, unc],
+        tolerances[unc],
+        betas,
+        target_m,
+        samples,
+        rng,
+        None if cov is None else cov[worst],
+        None if rnd_cov is None else rnd_cov[:claim_poses],
+        executor=executor,
     )

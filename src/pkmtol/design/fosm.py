@@ -12,10 +12,13 @@ design point do not count in ``n`` and get ``σ_i = +∞`` (free: choose by manu
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 import pkmtol.values as values
-from pkmtol.exceptions import InvalidRequestError
+from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
+from pkmtol.exceptions import InvalidRequestError, NoiseFloorError
 
 
 def fosm_tolerances(
@@ -78,3 +81,94 @@ def check_design(target_m: float, betas: np.ndarray | list[float] | tuple[float,
         raise InvalidRequestError(
             f"every reliability index β must be positive, got {b.tolist()}; give e.g. --beta 2"
         )
+
+
+def allocation_sensitivity(
+    position: np.ndarray, cols: np.ndarray, worst: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``ω_i`` at the design point, with each zero one taken from its own most sensitive pose.
+
+    A parameter with no effect at the design point but some elsewhere on the grid is never left
+    free silently (docs/theory.md, "No error left untoleranced").
+
+    Args:
+        position: Grid maps (m, 3, n_params) [m per unit].
+        cols: Indices of the allocated parameters.
+        worst: Grid index of the design point.
+
+    Returns:
+        ``(ω (len(cols),), fallback pose (len(cols),) or −1)``.
+    """
+    per_pose = np.linalg.norm(position[:, :, cols], axis=1)  # (m, k)
+    omega = per_pose[worst].copy()
+    top = max(float(per_pose.max(initial=0.0)), 1e-300)
+    fallback = np.full(cols.size, -1, dtype=int)
+    zero = omega <= 1e-12 * top
+    anywhere = per_pose.max(axis=0) > 1e-12 * top
+    for j in np.flatnonzero(zero & anywhere):
+        fallback[j] = first_max(per_pose[:, j])
+        omega[j] = per_pose[fallback[j], j]
+    return omega, fallback
+
+
+def tolerances_above_floor(
+    omega: np.ndarray,
+    target: float,
+    noise_var: float,
+    what: str,
+    *,
+    n_par: int,
+    unc: np.ndarray,
+    betas: tuple[float, ...],
+    design_beta: float,
+    noise: tuple[float, int] | None,
+) -> np.ndarray:
+    """FOSM tolerances (n_par, len(betas)) of the columns ``unc`` (NaN elsewhere) against ``target``.
+
+    The noise enters as the fixed variance ``noise_var``; when it alone misses the target at the
+    design β, NoiseFloorError names ``what`` and ``noise`` = (tracker σ [m], plan poses).
+    """
+    tol = np.full((n_par, len(betas)), np.nan)
+    tol[unc] = fosm_tolerances(omega, target, np.array(betas), noise_var)
+    design_col = int(np.argmin(np.abs(np.asarray(betas) - design_beta)))
+    if unc.size and np.isnan(tol[unc[0], design_col]):
+        assert noise is not None  # only a calibration's noise has a floor
+        floor = noise_floor_m(design_beta, noise_var)
+        raise NoiseFloorError(noise[0], noise[1], floor, target, design_beta, what)
+    return tol
+
+
+@dataclass(frozen=True)
+class Traditional:
+    """The traditional method (§4.5): every non-absorbed error, no compensation.
+
+    Attributes:
+        columns: Parameter indices allocated (all non-absorbed).
+        worst_index: Grid index of its own most sensitive point (reported only).
+        sensitivity: Shape (len(columns),): ``‖J_total[:, i]‖`` at the design point of the new
+            method (the same point, so that the comparison isolates the effect of compensation).
+        tolerance: Shape (len(columns),): FOSM tolerance at the design β (SI; inf = free).
+    """
+
+    columns: np.ndarray
+    worst_index: int
+    sensitivity: np.ndarray
+    tolerance: np.ndarray
+
+
+def traditional_design(
+    J_total: np.ndarray, classes: list[str], worst: int, target_m: float, design_beta: float
+) -> Traditional:
+    """The traditional method on grid maps ``J_total`` (m, 3, n_params), at the new method's design point.
+
+    Evaluated at the same design point as the new method, so the comparison isolates what
+    compensation buys; the traditional model's own most sensitive point is reported beside it.
+    """
+    cols = np.array([i for i, c in enumerate(classes) if c != "absorbed"], dtype=int)
+    sens = sensitivities(J_total[worst][:, cols])
+    return Traditional(
+        columns=cols,
+        worst_index=first_max(grid_norm_moments(J_total[:, :, cols])[:, 1]),
+        sensitivity=sens,
+        tolerance=fosm_tolerances(sens, target_m, np.array([design_beta]))[:, 0],
+    )

@@ -1,53 +1,62 @@
 """The main job: from a mechanism to a verified tolerance table (paper §3–4.5, end to end).
 
-:func:`allocate` runs, in order: the error model over the task-space grid and the parameter
-classification; the sensitive-pose search (Monte Carlo beside the analytic σ); FOSM allocation
-over the β series; verification of the design-β tolerances (linear model on random poses, exact
-kinematics on a subsample); the traditional method (all errors, no compensation) for comparison.
+:func:`allocate` is a pipeline of named stages, each a function of the module that owns its
+concept, returning a small frozen record; :class:`StageClock` times each one where it is called:
+
+1. error model on the grid (:func:`pkmtol.design.modes.grid_model`): the task-space grid, classes;
+2. mode maps (:func:`pkmtol.design.modes.mode_stage`): the maps and toleranced set of the mode;
+3. design pose (:func:`pkmtol.design.pose_search.search_sensitive_pose`);
+4. tolerances (:func:`pkmtol.design.allocation.fosm_stage`): FOSM over the β series;
+5. verification poses and claims (:func:`pkmtol.design.mode_verification.verification_poses`,
+   :func:`pkmtol.design.exact.claims_stage`): claimed Φ(β) against the true reliability;
+6. method design (:func:`pkmtol.design.methods.method_design_for`): ``exact`` or ``cost``;
+7. verification (:func:`pkmtol.design.mode_verification.verify_design`);
+8. traditional method (:func:`pkmtol.design.fosm.traditional_design`);
+9. orientation (:func:`pkmtol.design.orientation.orientation_stage`).
 """
 
 from __future__ import annotations
 
-import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 
-from pkmtol.calibration.maps import PoseMaps, pose_maps
 from pkmtol.calibration.plan import CalibrationPlan
-from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
+from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.design.allocation import design_tolerances
 from pkmtol.design.budget import check_memory
-from pkmtol.design.exact import CRITERIA, ClaimRow, claimed_vs_true
-from pkmtol.design.fosm import check_design, fosm_tolerances, noise_floor_m
-from pkmtol.design.methods import MethodDesign, method_design_for
-from pkmtol.design.mode_verification import calibrated_exact, ideal_exact, verify_mode
-from pkmtol.design.modes import mode_setup
-from pkmtol.design.options import check_options
-from pkmtol.design.orientation import (
-    OrientationDesign,
-    tilt_moments,
-    tilt_sensitivities,
-    tilt_worst_pose,
-)
+from pkmtol.design.exact import CRITERIA, ClaimRow, claims_stage
+from pkmtol.design.fosm import Traditional, check_design, traditional_design
+from pkmtol.design.methods import MethodDesign
+from pkmtol.design.mode_verification import CALIBRATED_EXACT_SAMPLES, verification_poses, verify_design
+from pkmtol.design.modes import grid_model, mode_stage
+from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, check_options
+from pkmtol.design.orientation import OrientationDesign, orientation_stage
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
 from pkmtol.design.reliability import reliability_fosm
-from pkmtol.design.verification import DISTRIBUTIONS, Verification, verify_all
-from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
+from pkmtol.design.verification import Verification
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
-from pkmtol.error_model.task import grid_sweep, machine_parameter_set, sample_sweep
-from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, NoiseFloorError
+from pkmtol.error_model.task import machine_parameter_set
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.executor import Executor
-from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.drawing import DrawingSettings
 from pkmtol.model.mechanism import Mechanism
 
-#: Exact verification samples of the ``calibrated`` mode (each is a whole simulated calibration; the
-#: thorough exact check is `pkmtol calibrate --simulate --tolerances allocation.json`),
-#: Gaussian errors only.
-CALIBRATED_EXACT_SAMPLES = 20
+__all__ = [
+    "CALIBRATED_EXACT_SAMPLES",
+    "DesignOptions",
+    "DesignResult",
+    "StageClock",
+    "Traditional",
+    "allocate",
+]
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -94,8 +103,8 @@ class DesignOptions:
     exact_samples: int = 1_000
     seed: int = 0
     progress: bool = False
-    method: str = "fosm"
-    criterion: str = "every"
+    method: str = DEFAULT_METHOD
+    criterion: str = DEFAULT_CRITERION
     claim_poses: int = 300
     compensation: str = "ideal"
     calibration: CalibrationSettings | None = None
@@ -107,24 +116,6 @@ class DesignOptions:
     def __post_init__(self) -> None:
         """Check every field (raises InvalidArgumentError naming it); betas become a tuple."""
         check_options(self)
-
-
-@dataclass(frozen=True)
-class Traditional:
-    """The traditional method (§4.5): every non-absorbed error, no compensation.
-
-    Attributes:
-        columns: Parameter indices allocated (all non-absorbed).
-        worst_index: Grid index of its own most sensitive point (reported only).
-        sensitivity: Shape (len(columns),): ``‖J_total[:, i]‖`` at the design point of the new
-            method (the same point, so that the comparison isolates the effect of compensation).
-        tolerance: Shape (len(columns),): FOSM tolerance at the design β (SI; inf = free).
-    """
-
-    columns: np.ndarray
-    worst_index: int
-    sensitivity: np.ndarray
-    tolerance: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,33 +245,6 @@ def _orientation_inputs(mechanism: Mechanism, opt: DesignOptions) -> tuple[np.nd
     return axis / np.linalg.norm(axis), None if target is None else float(target)
 
 
-def _calibration_settings(mechanism: Mechanism, opt: DesignOptions) -> CalibrationSettings:
-    if opt.calibration is not None:
-        return opt.calibration
-    path = (mechanism.root / "mechanism.toml") if mechanism.root is not None else "<mechanism>"
-    return settings_from_table(dict(mechanism.extra.get("calibration") or {}), path)
-
-
-def _allocation_sensitivity(
-    position: np.ndarray, cols: np.ndarray, worst: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """``ω_i`` at the design point, with each zero one taken from its own most sensitive pose.
-
-    Returns:
-        ``(ω (len(cols),), fallback pose (len(cols),) or −1)``.
-    """
-    per_pose = np.linalg.norm(position[:, :, cols], axis=1)  # (m, k)
-    omega = per_pose[worst].copy()
-    top = max(float(per_pose.max(initial=0.0)), 1e-300)
-    fallback = np.full(cols.size, -1, dtype=int)
-    zero = omega <= 1e-12 * top
-    anywhere = per_pose.max(axis=0) > 1e-12 * top
-    for j in np.flatnonzero(zero & anywhere):
-        fallback[j] = first_max(per_pose[:, j])
-        omega[j] = per_pose[fallback[j], j]
-    return omega, fallback
-
-
 def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> DesignResult:
     """Run the main job on a mechanism.
 
@@ -303,211 +267,96 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     check_memory(mechanism, opt)  # refuse up front what would not fit (ResourceLimitError)
     target, betas, design_beta = _check_options(mechanism, opt)
     axis, alpha_target = _orientation_inputs(mechanism, opt)
+    tilt = None if alpha_target is None else (axis, alpha_target)
     mode = opt.compensation
-    timings: dict[str, float] = {}
+    clock = StageClock()
     rng = np.random.default_rng(opt.seed)
     pset = machine_parameter_set(mechanism, opt.parameter_set)  # a hybrid's: with its tool's
 
-    t0 = time.perf_counter()
-    chain = ClosedChain(mechanism)
-    grid = grid_sweep(mechanism, pset, chain, progress=opt.progress)  # a hybrid's: at the TCP
-    classes = grid.classify()
-    timings["error model on grid"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    settings = _calibration_settings(mechanism, opt) if mode == "calibrated" else None
-    scale = None
-    if settings is not None:
-        # the plan's column scaling (and MAP prior): manufacturing σ, and the ideal design's
-        # tolerances for the uncompensatable errors
-        scale = settings.manufacturing_sigma(pset)
-        unc0 = np.array([i for i, c in enumerate(classes) if c == "uncompensatable"], dtype=int)
-        if unc0.size:
-            w0 = first_max(grid_norm_moments(grid.J[:, :, unc0])[:, 1])
-            om0, _ = _allocation_sensitivity(grid.J, unc0, w0)
-            t_ideal = fosm_tolerances(om0, target, np.array([design_beta]))[:, 0]
-            scale[unc0] = np.where(np.isfinite(t_ideal), t_ideal, scale[unc0])
-    setup = mode_setup(
+    model = clock("error model on grid", grid_model, mechanism, pset, opt.progress)
+    grid, chain = model.grid, model.chain
+    maps_stage = {"ideal": None, "calibrated": "calibration plan and maps", "none": "maps"}[mode]
+    setup = clock(
+        maps_stage,
+        mode_stage,
+        mechanism,
+        pset,
+        model,
+        mode,
+        opt.calibration,
+        target,
+        design_beta,
+        None if tilt is None else axis,
+    )
+    unc, maps = setup.columns, setup.grid_maps
+    search = clock("sensitive-pose search", search_sensitive_pose, maps.position[:, :, unc], opt.samples, rng)
+    worst = search.worst_index_analytic
+    noise = None if setup.plan is None else (setup.plan.settings.noise_m, setup.plan.poses)
+    tols = design_tolerances(
+        mechanism, pset, grid, maps, unc, worst, target, betas, design_beta, opt, noise, tilt, clock
+    )
+    fosm, tol, method_design, verified = tols.fosm, tols.fosm.tolerances, tols.method_design, tols.sigma
+    poses = clock(
+        "verification poses",
+        verification_poses,
         mechanism,
         pset,
         grid,
-        classes,
-        mode,
+        setup,
         chain,
-        settings,
-        scale,
-        axis if alpha_target is not None else None,
+        min(opt.verification_poses, opt.samples),
+        rng,
+        opt.progress,
     )
-    unc, maps = setup.columns, setup.grid_maps
-    if mode != "ideal":
-        timings["calibration plan and maps" if mode == "calibrated" else "maps"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    search = search_sensitive_pose(maps.position[:, :, unc], opt.samples, rng)
-    worst = search.worst_index_analytic
-    timings["sensitive-pose search"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    n_par = len(pset)
-    sens = np.zeros(n_par)
-    sens[unc] = sensitivities(maps.position[worst][:, unc])
-    sens_unc = sensitivities(grid.J_total[worst])
-    omega, fb = _allocation_sensitivity(maps.position, unc, worst)
-    fallback = np.full(n_par, -1, dtype=int)
-    fallback[unc] = fb
-    noise_var = 0.0
-    if maps.position_noise.shape[2]:
-        noise_var = float(maps.noise_m**2 * np.sum(maps.position_noise[worst] ** 2))
-    design_col = int(np.argmin(np.abs(np.asarray(betas) - design_beta)))
-    floor = functools.partial(  # the position's and the tilt's tolerances, each above its noise floor
-        _fosm_above_floor,
-        n_par=n_par,
-        unc=unc,
-        betas=betas,
-        design_col=design_col,
-        design_beta=design_beta,
-        plan=setup.plan,
-    )
-    tol = floor(omega, target, noise_var, "Δλ at P")
-    orientation = None
-    if alpha_target is not None:
-        w_a = tilt_worst_pose(maps, unc, axis)
-        tilt_map, tilt_noise = maps.tilt_maps(axis)
-        om_a, fb_a = _allocation_sensitivity(tilt_map, unc, w_a)
-        tn_var = float(maps.noise_m**2 * np.sum(tilt_noise[w_a] ** 2)) if tilt_noise.shape[2] else 0.0
-        tol_a = floor(om_a, alpha_target, tn_var, "the tilt of the tool axis")
-        binding = np.zeros(n_par, dtype=bool)
-        binding[unc] = tol_a[unc, design_col] < tol[unc, design_col]
-        tol[unc] = np.fmin(tol[unc], tol_a[unc])
-        sens_a = np.zeros(n_par)
-        sens_a[unc] = tilt_sensitivities(maps, unc, axis, w_a)
-        orientation = (w_a, sens_a, tol_a, binding)
-    timings["allocation"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    rnd = sample_sweep(
-        mechanism, pset, grid, rng, min(opt.verification_poses, opt.samples), chain, opt.progress
-    )
-    rnd_maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
-    timings["verification poses"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    noise_cov = _noise_covariance(maps)
-    rnd_noise_cov = _noise_covariance(rnd_maps)
-    claims = claimed_vs_true(
-        maps.position[worst][:, unc],
-        rnd_maps.position[: opt.claim_poses][:, :, unc],
-        tol[unc],
+    claims = clock(
+        "claimed vs true reliability",
+        claims_stage,
+        maps,
+        poses.maps,
+        worst,
+        unc,
+        tol,
         betas,
         target,
         opt.samples,
         rng,
-        None if noise_cov is None else noise_cov[worst],
-        None if rnd_noise_cov is None else rnd_noise_cov[: opt.claim_poses],
-        executor=opt.executor,
+        opt.claim_poses,
+        opt.executor,
     )
-    timings["claimed vs true reliability"] = time.perf_counter() - t0
-
-    method_design = None
-    verified = tol[unc, design_col]
-    if opt.method != "fosm":
-        t0 = time.perf_counter()
-        method_design = method_design_for(
-            mechanism,
-            pset,
-            grid,
-            unc,
-            tol[unc, design_col],
-            target,
-            design_beta,
-            worst,
-            opt,
-            maps=maps,
-            orientation=None if alpha_target is None else (axis, alpha_target),
-        )
-        verified = method_design.sigma
-        timings[f"{opt.method} design"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    ver: dict[str, Verification] = {}
-    if (
-        mode == "ideal" and alpha_target is None and mechanism.tool is None
-    ):  # the exact chunks of all distributions at once
-        ver = verify_all(
-            mechanism,
-            pset,
-            rnd,
-            unc,
-            verified,
-            target,
-            opt.samples,
-            opt.exact_samples,
-            rng,
-            progress=opt.progress,
-            executor=opt.executor,
-        )
-    for dist in () if ver else DISTRIBUTIONS:  # the other modes: one distribution at a time
-        exact, n_exact = None, opt.exact_samples
-        if mode == "calibrated":
-            assert setup.plan is not None
-            rnd_pose_maps = _pose_maps(rnd, chain, mechanism)
-            exact = (
-                calibrated_exact(mechanism, pset, setup.plan, rnd_pose_maps) if dist == "gaussian" else None
-            )
-            n_exact = min(opt.exact_samples, CALIBRATED_EXACT_SAMPLES)
-        else:
-            exact = ideal_exact(mechanism, pset, rnd, corrected=mode == "ideal")
-        background = None
-        if setup.background.size and settings is not None:
-            background = (setup.background, settings.manufacturing_sigma(pset)[setup.background])
-        ver[dist] = verify_mode(
-            rnd_maps,
-            rnd.points_m,
-            n_par,
-            unc,
-            verified,
-            target,
-            dist,
-            opt.samples,
-            n_exact,
-            rng,
-            exact,
-            background=background,
-            orientation=(axis, alpha_target),
-            progress=opt.progress,
-        )
-    timings["verification"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    trad_cols = np.array([i for i, c in enumerate(classes) if c != "absorbed"], dtype=int)
-    trad_sigma = grid_norm_moments(grid.J_total[:, :, trad_cols])[:, 1]
-    trad_worst = first_max(trad_sigma)
-    # evaluated at the same design point as the new method, so the comparison isolates what
-    # compensation buys; the traditional model's own most sensitive point is reported beside it
-    trad_sens = sensitivities(grid.J_total[worst][:, trad_cols])
-    traditional = Traditional(
-        columns=trad_cols,
-        worst_index=trad_worst,
-        sensitivity=trad_sens,
-        tolerance=fosm_tolerances(trad_sens, target, np.array([design_beta]))[:, 0],
+    ver = clock(
+        "verification",
+        verify_design,
+        mechanism,
+        pset,
+        setup,
+        poses,
+        chain,
+        verified,
+        target,
+        opt.samples,
+        opt.exact_samples,
+        rng,
+        (axis, alpha_target),
+        opt.progress,
+        opt.executor,
     )
-    timings["traditional method"] = time.perf_counter() - t0
-
-    sigma_full = np.zeros(n_par)
+    traditional = clock(
+        "traditional method", traditional_design, grid.J_total, model.classes, worst, target, design_beta
+    )
+    sigma_full = np.zeros(len(pset))
     sigma_full[unc] = np.where(np.isfinite(verified), verified, 0.0)
-    if setup.background.size and settings is not None:
-        sigma_full[setup.background] = settings.manufacturing_sigma(pset)[setup.background]
-    tm = tilt_moments(maps, sigma_full, axis)
-    od = OrientationDesign(
-        axis=axis,
-        target_rad=alpha_target,
-        worst_index=orientation[0] if orientation else tilt_worst_pose(maps, unc, axis) if unc.size else 0,
-        sensitivity=orientation[1] if orientation else _tilt_sens(maps, unc, axis, n_par),
-        tolerances=orientation[2] if orientation else None,
-        binding=orientation[3] if orientation else None,
-        tilt_mean_rad=float(tm[worst, 0]),
-        tilt_std_rad=float(tm[worst, 1]),
-        tilt_grid_mean_rad=tm[:, 0],
+    background = setup.background_sigma(pset)
+    if background is not None:
+        sigma_full[background[0]] = background[1]
+    t = fosm.tilt
+    od = orientation_stage(
+        maps,
+        unc,
+        sigma_full,
+        axis,
+        alpha_target,
+        worst,
+        None if t is None else (t.worst_index, t.sensitivity, t.tolerances, t.binding),
     )
     return DesignResult(
         mechanism=mechanism,
@@ -516,71 +365,45 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         betas=betas,
         design_beta=design_beta,
         reliability_fosm=reliability_fosm(np.array(betas)),
-        classes=classes,
+        classes=model.classes,
         grid=grid,
         search=search,
         worst_index=worst,
         uncompensatable=unc,
-        sensitivity=sens,
-        sensitivity_uncompensated=sens_unc,
+        sensitivity=fosm.sensitivity,
+        sensitivity_uncompensated=fosm.sensitivity_uncompensated,
         tolerances=tol,
         verification=ver,
         traditional=traditional,
         claims=claims,
         method_design=method_design,
-        timings_s=timings,
+        timings_s=clock.timings_s,
         compensation=mode,
         mode_classes=setup.classes,
         maps=maps,
         calibration_plan=setup.plan,
-        noise_variance_m2=noise_var,
-        fallback_pose=fallback,
+        noise_variance_m2=fosm.noise_variance_m2,
+        fallback_pose=fosm.fallback_pose,
         orientation=od,
         drawing=opt.drawing or mechanism.extra.get("drawing") or DrawingSettings(),
     )
 
 
-def _fosm_above_floor(
-    omega: np.ndarray,
-    target: float,
-    noise_var: float,
-    what: str,
-    *,
-    n_par: int,
-    unc: np.ndarray,
-    betas: tuple[float, ...],
-    design_col: int,
-    design_beta: float,
-    plan: CalibrationPlan | None,
-) -> np.ndarray:
-    """FOSM tolerances (n_par, len(betas)) of the columns ``unc`` (NaN elsewhere) against ``target``.
+class StageClock:
+    """The wall time of each stage of :func:`allocate`, recorded where the stage is called.
 
-    The noise enters as the fixed variance ``noise_var``; when it alone misses the target at the
-    design β, NoiseFloorError names ``what``.
+    ``clock(name, stage, *args, **kwargs)`` runs ``stage(*args, **kwargs)``, stores its wall time
+    under ``name`` in :attr:`timings_s` (a stage named None is not timed) and returns its result.
     """
-    tol = np.full((n_par, len(betas)), np.nan)
-    tol[unc] = fosm_tolerances(omega, target, np.array(betas), noise_var)
-    if unc.size and np.isnan(tol[unc[0], design_col]):
-        assert plan is not None  # only a calibration's noise has a floor
-        floor = noise_floor_m(design_beta, noise_var)
-        raise NoiseFloorError(plan.settings.noise_m, plan.poses, floor, target, design_beta, what)
-    return tol
 
+    def __init__(self) -> None:
+        """An empty clock."""
+        self.timings_s: dict[str, float] = {}
 
-def _tilt_sens(maps: AccuracyMaps, unc: np.ndarray, axis: np.ndarray, n: int) -> np.ndarray:
-    out = np.zeros(n)
-    if unc.size:
-        out[unc] = tilt_sensitivities(maps, unc, axis, tilt_worst_pose(maps, unc, axis))
-    return out
-
-
-def _noise_covariance(maps: AccuracyMaps) -> np.ndarray | None:
-    """``σ_m² N Nᵀ`` per pose (m, 3, 3) [m²], or None without a calibration."""
-    if not maps.position_noise.shape[2] or maps.noise_m <= 0:
-        return None
-    N = maps.position_noise
-    return maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
-
-
-def _pose_maps(sweep_: Sweep, chain: ClosedChain, mechanism: Mechanism) -> PoseMaps:
-    return pose_maps(sweep_, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
+    def __call__(self, name: str | None, stage: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """Run one stage and record its time."""
+        t0 = time.perf_counter()
+        out = stage(*args, **kwargs)
+        if name is not None:
+            self.timings_s[name] = time.perf_counter() - t0
+        return out

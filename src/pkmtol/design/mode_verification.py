@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -27,23 +28,38 @@ from tqdm import tqdm
 
 from pkmtol.calibration.compensation import PoseErrors
 from pkmtol.calibration.machine import Machine
-from pkmtol.calibration.maps import PoseMaps
+from pkmtol.calibration.maps import PoseMaps, pose_maps
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.study import calibrate_and_evaluate
-from pkmtol.design.verification import Verification, cyclic_products, failure_stats, sample_errors
+from pkmtol.design.modes import ModeSetup
+from pkmtol.design.verification import (
+    DISTRIBUTIONS,
+    Verification,
+    cyclic_products,
+    failure_stats,
+    sample_errors,
+    verify_all,
+)
 from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.task import sample_sweep
 from pkmtol.error_model.tool_chain import HybridParameterSet
 from pkmtol.error_model.tool_exact import tool_exact
 from pkmtol.error_model.tool_sweep import ToolSweep
 from pkmtol.exceptions import KinematicsError
+from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
 
 #: Linear samples per chunk: a chunk's draws and products take a few doubles per sample and parameter.
 MODE_CHUNK = 16_384
+
+#: Exact verification samples of the ``calibrated`` mode (each is a whole simulated calibration; the
+#: thorough exact check is `pkmtol calibrate --simulate --tolerances allocation.json`),
+#: Gaussian errors only.
+CALIBRATED_EXACT_SAMPLES = 20
 
 #: ``(pose index, full parameter vector, noise) → (P error (3,), rotation (3,))`` or None (unassembled).
 ExactError = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray] | None]
@@ -89,6 +105,106 @@ def calibrated_exact(
         return errs.position_m[0], errs.rotation_rad[0]
 
     return error
+
+
+@dataclass(frozen=True, eq=False)
+class VerificationPoses:
+    """The random task-space poses of the verification (and of the claims' task-space columns).
+
+    Attributes:
+        sweep: Their sweep (error model at each pose).
+        maps: The compensation mode's maps there.
+    """
+
+    sweep: Sweep
+    maps: AccuracyMaps
+
+
+def verification_poses(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    grid: Sweep,
+    setup: ModeSetup,
+    chain: ClosedChain,
+    count: int,
+    rng: np.random.Generator,
+    progress: bool = False,
+) -> VerificationPoses:
+    """Draw ``count`` random task-space poses (uniform in the volume) and the mode's maps there."""
+    rnd = sample_sweep(mechanism, pset, grid, rng, count, chain, progress)
+    maps = setup.maps_at(rnd, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
+    return VerificationPoses(sweep=rnd, maps=maps)
+
+
+def verify_design(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    setup: ModeSetup,
+    poses: VerificationPoses,
+    chain: ClosedChain,
+    sigma: np.ndarray,
+    target_m: float,
+    samples: int,
+    exact_samples: int,
+    rng: np.random.Generator,
+    orientation: tuple[np.ndarray, float | None],
+    progress: bool = False,
+    executor: Executor | None = None,
+) -> dict[str, Verification]:
+    """The verification stage: the design ``sigma`` of ``setup.columns`` per distribution.
+
+    ``ideal`` without a tilt target or a tool chain runs the exact chunks of all distributions at
+    once (:func:`pkmtol.design.verification.verify_all`); the other modes one distribution at a
+    time (:func:`verify_mode`), ``calibrated`` with at most :data:`CALIBRATED_EXACT_SAMPLES` exact
+    samples of Gaussian errors only.
+    """
+    rnd, unc, mode = poses.sweep, setup.columns, setup.mode
+    if mode == "ideal" and orientation[1] is None and mechanism.tool is None:
+        return verify_all(
+            mechanism,
+            pset,
+            rnd,
+            unc,
+            sigma,
+            target_m,
+            samples,
+            exact_samples,
+            rng,
+            progress=progress,
+            executor=executor,
+        )
+    ver: dict[str, Verification] = {}
+    for dist in DISTRIBUTIONS:
+        exact: ExactError | None
+        n_exact = exact_samples
+        if mode == "calibrated":
+            assert setup.plan is not None
+            rnd_pose_maps = pose_maps(
+                rnd, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection
+            )
+            exact = (
+                calibrated_exact(mechanism, pset, setup.plan, rnd_pose_maps) if dist == "gaussian" else None
+            )
+            n_exact = min(exact_samples, CALIBRATED_EXACT_SAMPLES)
+        else:
+            exact = ideal_exact(mechanism, pset, rnd, corrected=mode == "ideal")
+        ver[dist] = verify_mode(
+            poses.maps,
+            rnd.points_m,
+            len(pset),
+            unc,
+            sigma,
+            target_m,
+            dist,
+            samples,
+            n_exact,
+            rng,
+            exact,
+            background=setup.background_sigma(pset),
+            orientation=orientation,
+            progress=progress,
+        )
+    return ver
 
 
 def verify_mode(

@@ -19,7 +19,8 @@ import numpy as np
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.plan import CalibrationPlan, candidate_pool, make_plan
 from pkmtol.calibration.postcal import calibrated_maps
-from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
+from pkmtol.design.fosm import allocation_sensitivity, fosm_tolerances
 from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
 from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps, mode_maps
 from pkmtol.error_model.parameters import ParameterSet
@@ -29,6 +30,54 @@ from pkmtol.error_model.task import grid_sweep, hybrid_calibration_refusal, mach
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
+
+
+@dataclass(frozen=True, eq=False)
+class GridModel:
+    """The error model on the task-space grid (the first stage of the main job).
+
+    Attributes:
+        chain: The solver workspace it was solved with.
+        grid: The grid sweep (error twists, separation, maps at every grid pose).
+        classes: The error model's class of each parameter (absorbed / compensatable /
+            uncompensatable).
+    """
+
+    chain: ClosedChain
+    grid: Sweep
+    classes: list[str]
+
+
+def grid_model(mechanism: Mechanism, pset: ParameterSet, progress: bool = False) -> GridModel:
+    """Solve the task-space grid and classify the parameters (a hybrid's: at the TCP)."""
+    chain = ClosedChain(mechanism)
+    grid = grid_sweep(mechanism, pset, chain, progress=progress)
+    return GridModel(chain=chain, grid=grid, classes=grid.classify())
+
+
+def calibration_settings(mechanism: Mechanism, given: CalibrationSettings | None) -> CalibrationSettings:
+    """The calibration plan's settings: ``given``, else the mechanism's ``[calibration]`` table."""
+    if given is not None:
+        return given
+    path = (mechanism.root / "mechanism.toml") if mechanism.root is not None else "<mechanism>"
+    return settings_from_table(dict(mechanism.extra.get("calibration") or {}), path)
+
+
+def plan_scale(
+    pset: ParameterSet, model: GridModel, settings: CalibrationSettings, target_m: float, design_beta: float
+) -> np.ndarray:
+    """Expected size of every parameter: the plan's column scaling (and MAP prior).
+
+    The manufacturing σ, and for the uncompensatable errors the ideal design's FOSM tolerances.
+    """
+    scale = settings.manufacturing_sigma(pset)
+    unc0 = np.array([i for i, c in enumerate(model.classes) if c == "uncompensatable"], dtype=int)
+    if unc0.size:
+        w0 = first_max(grid_norm_moments(model.grid.J[:, :, unc0])[:, 1])
+        om0, _ = allocation_sensitivity(model.grid.J, unc0, w0)
+        t_ideal = fosm_tolerances(om0, target_m, np.array([design_beta]))[:, 0]
+        scale[unc0] = np.where(np.isfinite(t_ideal), t_ideal, scale[unc0])
+    return scale
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +100,13 @@ class ModeSetup:
     classes: list[str]
     plan: CalibrationPlan | None
     background: np.ndarray
+    settings: CalibrationSettings | None = None
+
+    def background_sigma(self, pset: ParameterSet) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(columns, manufacturing σ)`` of the background errors, or None without any."""
+        if not self.background.size or self.settings is None:
+            return None
+        return self.background, self.settings.manufacturing_sigma(pset)[self.background]
 
     def maps_at(
         self,
@@ -123,7 +179,31 @@ def mode_setup(
         for i, c in enumerate(classes)
     ]
     background = np.array([i for i in nonabs if not survives[i]], dtype=int)
-    return ModeSetup(mode, maps, cols, mode_classes, plan, background)
+    return ModeSetup(mode, maps, cols, mode_classes, plan, background, settings)
+
+
+def mode_stage(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    model: GridModel,
+    mode: str,
+    calibration: CalibrationSettings | None,
+    target_m: float,
+    design_beta: float,
+    tilt_axis: np.ndarray | None = None,
+) -> ModeSetup:
+    """The main job's mode-maps stage: :func:`mode_setup`, under ``calibrated`` with its plan settings.
+
+    ``calibration``: the options' settings (None: the mechanism's ``[calibration]`` table); the
+    plan's scaling comes from :func:`plan_scale`.
+    """
+    settings = scale = None
+    if mode == "calibrated":
+        settings = calibration_settings(mechanism, calibration)
+        scale = plan_scale(pset, model, settings, target_m, design_beta)
+    return mode_setup(
+        mechanism, pset, model.grid, model.classes, mode, model.chain, settings, scale, tilt_axis
+    )
 
 
 def _surviving(maps: AccuracyMaps, grid: Sweep, tilt_axis: np.ndarray | None) -> np.ndarray:

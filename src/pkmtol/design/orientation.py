@@ -57,6 +57,49 @@ class OrientationDesign:
     tilt_grid_mean_rad: np.ndarray
 
 
+def orientation_stage(
+    maps: AccuracyMaps,
+    unc: np.ndarray,
+    sigma_full: np.ndarray,
+    axis: np.ndarray,
+    target_rad: float | None,
+    design_pose: int,
+    allocated: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None,
+) -> OrientationDesign:
+    """The orientation stage: the tilt of the tool axis for the verified tolerances ``sigma_full``.
+
+    Args:
+        maps: The mode's maps on the grid.
+        unc: Indices of the toleranced parameters.
+        sigma_full: Shape (n_params,): every parameter's σ in the verified design (0: none).
+        axis: The tool axis (unit, platform frame).
+        target_rad: Δα* (None: the tilt is only reported).
+        design_pose: The position's design pose (where the tilt's mean and σ are reported).
+        allocated: The tilt's own allocation ``(worst pose, sensitivity, tolerances, binding)``
+            when it has a target, else None (its sensitivities are then computed here).
+    """
+    tm = tilt_moments(maps, sigma_full, axis)
+    if allocated is not None:
+        worst, sens, tolerances, binding = allocated
+    else:
+        worst = tilt_worst_pose(maps, unc, axis) if unc.size else 0
+        sens = np.zeros(sigma_full.size)
+        if unc.size:
+            sens[unc] = tilt_sensitivities(maps, unc, axis, worst)
+        tolerances = binding = None
+    return OrientationDesign(
+        axis=axis,
+        target_rad=target_rad,
+        worst_index=worst,
+        sensitivity=sens,
+        tolerances=tolerances,
+        binding=binding,
+        tilt_mean_rad=float(tm[design_pose, 0]),
+        tilt_std_rad=float(tm[design_pose, 1]),
+        tilt_grid_mean_rad=tm[:, 0],
+    )
+
+
 def tilt_worst_pose(maps: AccuracyMaps, columns: np.ndarray, axis: np.ndarray) -> int:
     """Grid index of the largest σ[Δα] for unit errors of ``columns``."""
     tilt, _ = maps.tilt_maps(axis)

@@ -42,6 +42,11 @@ class PoseSearch:
     samples: int
 
 
+def analytic_design_pose(J: np.ndarray) -> int:
+    """Grid index of the largest analytic σ[Δλ] for unit errors over grid maps ``J`` (m, 3, n)."""
+    return first_max(grid_norm_moments(J)[:, 1])
+
+
 def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
     """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
     J = values.array_of_shape("J", J, (None, 3, None))

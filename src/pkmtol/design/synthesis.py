@@ -13,7 +13,9 @@ Per variant, on the :class:`pkmtol.executor.Executor` (one chunk per variant):
   the nominal ``home`` is re-closed first when the dimensions moved the limbs' platform frames apart;
 * the worst σ[Δλ]: the analytic standard deviation of Δλ with every uncompensatable error
   ``~ N(0, 1)`` (SI units) at the grid's most sensitive pose;
-* the design-β FOSM tolerances of the uncompensatable errors (the paper's Eq. 20 at that pose);
+* the design-β tolerances of the uncompensatable errors by the same stages as ``pkmtol allocate``
+  (:func:`pkmtol.design.allocation.design_tolerances`: FOSM at that pose, a parameter without
+  effect there sensitised at its own most sensitive pose, then the ``exact`` or ``cost`` method);
 * σ[Δλ] over the grid (its maximum) when the reference design's tolerances are kept — the
   reference is the robot as its ``mechanism.toml`` gives it;
 * the cost of the tolerances under the robot's cost model (:mod:`pkmtol.design.cost`; a free
@@ -34,11 +36,16 @@ from typing import Any
 
 import numpy as np
 
+import pkmtol.values as values
+from pkmtol.design.allocation import design_tolerances
 from pkmtol.design.cost import cost_model
-from pkmtol.design.fosm import fosm_tolerances
-from pkmtol.error_model.accuracy import first_max, grid_norm_moments, sensitivities
+from pkmtol.design.exact import CRITERIA
+from pkmtol.design.modes import grid_model, mode_stage
+from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, METHODS
+from pkmtol.design.pose_search import analytic_design_pose
+from pkmtol.error_model.accuracy import grid_norm_moments
 from pkmtol.error_model.parameters import default_set
-from pkmtol.error_model.task import grid_sweep, machine_parameter_set
+from pkmtol.error_model.task import machine_parameter_set
 from pkmtol.exceptions import (
     JointLimitError,
     KinematicsError,
@@ -185,7 +192,8 @@ class Variant:
             (nan if the variant's η_c differ from the reference's).
         names: The uncompensatable parameters.
         units: Their units (``m`` or ``rad``).
-        tolerances: Shape (len(names),): FOSM tolerances at the design β [m or rad] (inf: free).
+        tolerances: Shape (len(names),): the design-β tolerances of ``allocate`` with the sweep's
+            method and criterion [m or rad] (inf: free).
         cost: Cost of the tolerances under the cost model.
         seconds: Wall time of the evaluation [s].
     """
@@ -239,6 +247,8 @@ class _Task:
     beta: float | None
     reference_names: tuple[str, ...]
     reference_tolerances: np.ndarray
+    method: str = DEFAULT_METHOD
+    criterion: str = DEFAULT_CRITERION
 
 
 def synthesize(
@@ -249,6 +259,8 @@ def synthesize(
     executor: Executor | None = None,
     progress: Any = None,
     tool_scope: str | None = None,
+    method: str = DEFAULT_METHOD,
+    criterion: str = DEFAULT_CRITERION,
 ) -> Synthesis:
     """Evaluate every variant of ``varies`` (their Cartesian product) and the reference design.
 
@@ -260,11 +272,15 @@ def synthesize(
         executor: Where the variants run (None: serial).
         progress: Called with the number of variants done after each one (e.g. a progress bar).
         tool_scope: A hybrid's compensation scope (``[tool] compensation``; default the file's).
+        method: The design method, as ``allocate --method`` (default ``DEFAULT_METHOD``).
+        criterion: Where ``exact`` meets R*, as ``allocate --criterion`` (default ``every``).
 
     Raises:
         SweepSpecError: a key does not exist or holds no number, or too many variants.
         PkmtolError: the robot as given cannot be loaded or its design fails.
     """
+    values.choice("method", method, METHODS)
+    values.choice("criterion", criterion, CRITERIA)
     folder = Path(folder)
     nominal = load_mechanism(folder)
     doc = read_doc(folder)
@@ -278,7 +294,7 @@ def synthesize(
             " ".join(v.key for v in varies), f"{count} variants > {MAX_VARIANTS}; use fewer values"
         )
     check_keys(doc, varies)
-    base = _Task(folder, doc, texts, {}, kind, beta, (), np.zeros(0))
+    base = _Task(folder, doc, texts, {}, kind, beta, (), np.zeros(0), method, criterion)
     reference = evaluate_variant(base)
     if not reference.reachable:
         raise KinematicsError(f"the robot as given fails: {reference.reason}")
@@ -376,24 +392,33 @@ def evaluate_variant(task: _Task) -> Variant:
     try:
         mech = variant_mechanism(task.folder, task.doc, task.urdf_texts, task.values)
         pset = machine_parameter_set(mech, task.kind)  # a hybrid: with its tool's, at the TCP
-        grid = grid_sweep(mech, pset)
+        model = grid_model(mech, pset)
     except PkmtolError as err:
         return Variant(
             values=task.values, reachable=False, reason=_reason(err), seconds=time.perf_counter() - t0
         )
-    classes = grid.classify()
-    unc = [i for i, c in enumerate(classes) if c == "uncompensatable"]
-    J = grid.J[:, :, unc]
-    sigma = grid_norm_moments(J)[:, 1]
-    worst = first_max(sigma)
     beta = mech.design_beta if task.beta is None else task.beta
-    tol = fosm_tolerances(sensitivities(grid.J[worst][:, unc]), mech.target_m, np.array([beta]))[:, 0]
+    betas = tuple(sorted(set(mech.betas) | {beta}))
+    setup = mode_stage(mech, pset, model, "ideal", None, mech.target_m, beta)  # the sweep's mode
+    unc = setup.columns
+    J = setup.grid_maps.position[:, :, unc]
+    sigma = grid_norm_moments(J)[:, 1]
+    worst = analytic_design_pose(J)
+    grid = model.grid
+    try:  # the tolerances stage of `pkmtol allocate`
+        tol = design_tolerances(
+            mech, pset, grid, setup.grid_maps, unc, worst, mech.target_m, betas, beta, task
+        ).sigma
+    except PkmtolError as err:
+        return Variant(
+            values=task.values, reachable=False, reason=_reason(err), seconds=time.perf_counter() - t0
+        )
     names = tuple(pset.names[i] for i in unc)
     sigma_ref = float("nan")
     if task.reference_names == names and names:
         ref = np.where(np.isfinite(task.reference_tolerances), task.reference_tolerances, 0.0)
         sigma_ref = float(grid_norm_moments(J, ref)[:, 1].max())
-    model = cost_model([pset.parameters[i] for i in unc], mech.extra.get("cost"))
+    cost = cost_model([pset.parameters[i] for i in unc], mech.extra.get("cost"))
     return Variant(
         values=task.values,
         reachable=True,
@@ -403,7 +428,7 @@ def evaluate_variant(task: _Task) -> Variant:
         names=names,
         units=tuple(pset.units[i] for i in unc),
         tolerances=tol,
-        cost=model.cost(np.where(np.isfinite(tol), tol, model.t_max_si)) if unc else 0.0,
+        cost=cost.cost(np.where(np.isfinite(tol), tol, cost.t_max_si)) if unc.size else 0.0,
         seconds=time.perf_counter() - t0,
     )
 
