@@ -23,6 +23,7 @@ from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
+from pkmtol.present.headline import headline_lines
 from pkmtol.present.outputs import render_tables
 from pkmtol.present.run_folder import RunFolder
 from pkmtol.present.tables import summary_text
@@ -264,6 +265,7 @@ def _run(args: argparse.Namespace) -> int:
             f"wrote {args.report} ({len(report.data)} bytes: {len(report.sections)} sections, "
             f"{len(report.figures)} figures)"
         )
+    print("\n".join(["", *headline_lines(result)]))  # the last lines: the claim, a failed check
     if args.view:
         view(result, None, True, options)
     return 0

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from pkmtol.design.fosm import allocation_sensitivity, tolerances_above_floor
+from pkmtol.design.fosm import allocation_sensitivity, fosm_tolerances, tolerances_above_floor
 from pkmtol.design.methods import MethodChoice, MethodDesign, method_design_for
 from pkmtol.design.orientation import tilt_sensitivities, tilt_worst_pose
 from pkmtol.error_model.accuracy import sensitivities
@@ -67,6 +67,49 @@ def noise_variance(maps: AccuracyMaps, pose: int) -> float:
     if not maps.position_noise.shape[2]:
         return 0.0
     return float(maps.noise_m**2 * np.sum(maps.position_noise[pose] ** 2))
+
+
+def total_variance(maps: AccuracyMaps, unc: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """``Σ_i ‖J_k[:, i]‖² σ_i² + σ_m² ‖N_k‖²_F`` at every grid pose k (m,) [m²]: E[Δλ²] of a design."""
+    s = np.where(np.isfinite(sigma), sigma, 0.0)
+    var = np.einsum("kri,i->k", maps.position[:, :, unc] ** 2, s**2)
+    if maps.position_noise.shape[2]:
+        var = var + maps.noise_m**2 * np.sum(maps.position_noise**2, axis=(1, 2))
+    return var
+
+
+#: Most passes of :func:`noise_design_pose`.
+DESIGN_POSE_PASSES = 20
+
+
+def noise_design_pose(
+    maps: AccuracyMaps, unc: np.ndarray, start: int, target_m: float, design_beta: float
+) -> int:
+    """The design pose with the tracker noise included: where E[Δλ²] of the design is largest.
+
+    After a calibration the unit-error σ misses the noise term ``σ_m² ‖N‖²``, which grows towards
+    the rim the plan does not reach. From ``start`` (the unit-error pose), design FOSM tolerances
+    at the pose and move to the grid pose where that design's total variance
+    (:func:`total_variance`, tolerance and noise parts) is largest; repeat until the pose stays.
+    When the passes come back to a pose already visited (or after :data:`DESIGN_POSE_PASSES`),
+    the answer is the visited pose whose design has the smallest largest total variance over the
+    grid (the one-pose design that misses least elsewhere). A pose whose noise alone misses the
+    target is returned as it is: the tolerances stage then names the noise floor.
+    """
+    seen: dict[int, float] = {}
+    pose = start
+    for _ in range(DESIGN_POSE_PASSES):
+        omega, _ = allocation_sensitivity(maps.position, unc, pose)
+        sigma = fosm_tolerances(omega, target_m, np.array([design_beta]), noise_variance(maps, pose))[:, 0]
+        if np.isnan(sigma).any():
+            return pose
+        var = total_variance(maps, unc, sigma)
+        seen[pose] = float(var.max())
+        nxt = int(np.argmax(var))
+        if nxt == pose or nxt in seen:
+            break
+        pose = nxt
+    return min(seen, key=lambda k: (seen[k], k))
 
 
 def fosm_stage(

@@ -26,12 +26,18 @@ import numpy as np
 
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.settings import CalibrationSettings
-from pkmtol.design.allocation import design_tolerances
+from pkmtol.design.allocation import design_tolerances, noise_design_pose
 from pkmtol.design.budget import check_memory
+from pkmtol.design.claim import Claim, Miss, design_claim, verification_misses
 from pkmtol.design.exact import CRITERIA, ClaimRow, claims_stage
 from pkmtol.design.fosm import Traditional, check_design, traditional_design
 from pkmtol.design.methods import MethodDesign
-from pkmtol.design.mode_verification import CALIBRATED_EXACT_SAMPLES, verification_poses, verify_design
+from pkmtol.design.mode_verification import (
+    CALIBRATED_EXACT_SAMPLES,
+    exact_cap,
+    verification_poses,
+    verify_design,
+)
 from pkmtol.design.modes import grid_model, mode_stage
 from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, check_options
 from pkmtol.design.orientation import OrientationDesign, orientation_stage
@@ -158,6 +164,12 @@ class DesignResult:
         orientation: The tilt of the tool axis: sensitivities, its own FOSM tolerances when it has
             a target, and its statistics for the verified design.
         drawing: How the tolerances go on a drawing (:mod:`pkmtol.design.signoff` reports them).
+        claim: What the verified design promises and where, with its exact reliability of the
+            linear model at every grid pose (:mod:`pkmtol.design.claim`).
+        claim_misses: The Gaussian verification rows that fall short of the claim beyond their
+            95 % interval (empty: the verification agrees).
+        exact_samples_cap: The exact verification samples the mode ran when it capped
+            ``exact_samples`` (None: not capped).
     """
 
     mechanism: Mechanism
@@ -187,6 +199,9 @@ class DesignResult:
     fallback_pose: np.ndarray | None = None
     orientation: OrientationDesign | None = None
     drawing: DrawingSettings = field(default_factory=DrawingSettings)
+    claim: Claim | None = None
+    claim_misses: list[Miss] = field(default_factory=list)
+    exact_samples_cap: int | None = None
 
     @property
     def worst_point_m(self) -> np.ndarray:
@@ -291,6 +306,8 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     unc, maps = setup.columns, setup.grid_maps
     search = clock("sensitive-pose search", search_sensitive_pose, maps.position[:, :, unc], opt.samples, rng)
     worst = search.worst_index_analytic
+    if setup.plan is not None:  # the design pose with the tracker noise σ_m² ‖N‖² included
+        worst = clock("design pose", noise_design_pose, maps, unc, worst, target, design_beta)
     noise = None if setup.plan is None else (setup.plan.settings.noise_m, setup.plan.poses)
     tols = design_tolerances(
         mechanism, pset, grid, maps, unc, worst, target, betas, design_beta, opt, noise, tilt, clock
@@ -348,6 +365,19 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     background = setup.background_sigma(pset)
     if background is not None:
         sigma_full[background[0]] = background[1]
+    claim = clock(
+        "claim",
+        design_claim,
+        maps,
+        unc,
+        verified,
+        target,
+        design_beta,
+        worst,
+        opt.method,
+        opt.criterion,
+        method_design,
+    )
     t = fosm.tilt
     od = orientation_stage(
         maps,
@@ -386,6 +416,9 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         fallback_pose=fosm.fallback_pose,
         orientation=od,
         drawing=opt.drawing or mechanism.extra.get("drawing") or DrawingSettings(),
+        claim=claim,
+        claim_misses=verification_misses(ver, claim.claimed),
+        exact_samples_cap=exact_cap(mode, opt.exact_samples),
     )
 
 

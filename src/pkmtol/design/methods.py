@@ -53,6 +53,8 @@ class MethodDesign:
         cost: Total cost of ``sigma`` under the cost model.
         reference_sigma: The equal-effect design scaled to the same true R (min over the grid).
         reference_cost: Its cost.
+        joint: Whether ``reliability`` is the joint position and tilt reliability (an orientation
+            target).
     """
 
     method: str
@@ -63,6 +65,7 @@ class MethodDesign:
     cost: float
     reference_sigma: np.ndarray
     reference_cost: float
+    joint: bool = False
 
 
 def method_design_for(
@@ -140,6 +143,7 @@ def method_design_for(
         cost=model.cost(sigma),
         reference_sigma=reference[0],
         reference_cost=model.cost(reference[0]),
+        joint=orientation is not None,
     )
 
 

@@ -18,7 +18,7 @@ from pkmtol.exceptions import InvalidArgumentError
 #: Design methods of :func:`~pkmtol.design.job.allocate`.
 METHODS = ("fosm", "exact", "cost")
 #: The default design method of ``allocate`` and ``sweep``.
-DEFAULT_METHOD = "fosm"
+DEFAULT_METHOD = "exact"
 #: The default criterion of the ``exact`` method: R ≥ R* at every grid pose.
 DEFAULT_CRITERION = "every"
 #: Fewest Monte Carlo samples (a sample standard deviation needs two).

@@ -21,6 +21,7 @@ import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
+from pkmtol.present.headline import claim_line, headline_lines
 from pkmtol.present.hybrid_tables import hybrid_ideal_text, sub_assemblies, sub_assembly_lines
 from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
 from pkmtol.units import display, display_unit
@@ -116,6 +117,7 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
         },
         "verification": ver,
         "verified_design": "fosm" if r.method_design is None else r.method_design.method,
+        "claim": claim_json(r),
         "claimed_vs_true": [
             {
                 "beta": c.beta,
@@ -166,6 +168,38 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
             "own_worst_point_m": r.grid.points_m[r.traditional.worst_index].tolist(),
             "n_allocated": int(np.sum(np.isfinite(r.traditional.tolerance))),
         },
+    }
+
+
+def claim_json(r: DesignResult) -> dict[str, Any] | None:
+    """The claim of the verified design: its scope, the grid reliability, the verification's misses."""
+    c = r.claim
+    if c is None:
+        return None
+    return {
+        "method": c.method,
+        "scope": c.scope,
+        "where": c.where,
+        "claimed_reliability": c.claimed,
+        "text": claim_line(c, r.compensation == "calibrated"),
+        "design_grid_pose": c.design_pose,
+        "unit_error_grid_pose": r.search.worst_index_analytic,
+        "joint_position_and_tilt": c.joint,
+        "grid_reliability": c.reliability.tolist(),
+        "grid_min_reliability": c.min_reliability,
+        "grid_min_pose": c.min_pose,
+        "grid_mean_reliability": c.mean_reliability,
+        "verification_misses": [
+            {
+                "distribution": m.distribution,
+                "model": m.model,
+                "reliability": m.reliability,
+                "ci95": list(m.interval),
+                "samples": m.samples,
+            }
+            for m in r.claim_misses
+        ],
+        "exact_samples_cap": r.exact_samples_cap,
     }
 
 
@@ -262,6 +296,12 @@ def compensation_lines(r: DesignResult) -> list[str]:
             f"the tracker noise alone leaves σ = {1e6 * math.sqrt(r.noise_variance_m2):.3f} µm of Δλ's "
             "linear response at the design point (a fixed variance term in FOSM; the floor it sets is "
             f"β·σ = {1e6 * r.design_beta * math.sqrt(r.noise_variance_m2):.3f} µm at the design β)"
+        )
+    if plan is not None and r.worst_index != r.search.worst_index_analytic:
+        out.append(
+            f"design pose: grid pose {r.worst_index}, the largest E[Δλ²] of its FOSM design with the "
+            f"tracker noise σ_m² ‖N‖² included (grid pose {r.search.worst_index_analytic} has the largest "
+            "σ[Δλ] of unit errors alone)"
         )
     fb = r.fallback_pose if r.fallback_pose is not None else np.zeros(0)
     n_fb = int(np.sum(fb >= 0))
@@ -431,7 +471,7 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
                     f"{100 * s.reliability:.2f}",
                 ]
             )
-    out += [table(vrows), "", f"claimed by FOSM: R = {100 * r.reliability_fosm[col]:.2f} %"]
+    out += [table(vrows), "", *headline_lines(r)]
     out += [
         f"exact kinematics ({name}): {v.exact_unassembled} sample(s) could not be assembled (the "
         "errors include assembly errors no rigid motion satisfies: over-constrained mechanism) "
