@@ -99,7 +99,7 @@ def test_allocate_method_exact(tmp_path, capsys):
         (["--samples", "0"], "--samples 0: must be ≥ 2"),
         (["--seed", "-1"], "--seed -1: must be ≥ 0"),
         (["--target", "50"], "--target 50: '50' has no unit"),
-        (["--criterion", "worst"], "--criterion worst: only --method exact reads it"),
+        (["--criterion", "worst", "--method", "fosm"], "--criterion worst: only --method exact reads it"),
         (["--samples", "1000000000000"], "--samples 1000000000000: needs about"),
     ],
 )

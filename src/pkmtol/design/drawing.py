@@ -160,7 +160,8 @@ def drawing_tolerances(
         mechanism: The mechanism.
         pset: Its parameter set.
         columns: Indices of the toleranced parameters.
-        sigma: Shape (len(pset),): the design's σ_i (SI; a non-finite σ is left out).
+        sigma: Shape (len(pset),): the design's σ_i (SI). A σ that is not finite and positive gets
+            no callout: a free error (no effect on Δλ anywhere on the grid) has no zone to draw.
         settings: The convention, nominals and feature lengths.
         tool_axis: The tool axis in the platform frame (the platform attachment's feature; z).
 
@@ -172,7 +173,7 @@ def drawing_tolerances(
     out = []
     for i in np.asarray(columns, dtype=int):
         s = float(sigma[i])
-        if not math.isfinite(s):
+        if not (math.isfinite(s) and s > 0.0):  # free: σ = +inf, or 0 where a caller zeroed it
             continue
         p = pset.parameters[i]
         if p.limb >= len(mechanism.limbs) and mechanism.tool is not None:  # a hybrid's tool chain

@@ -337,6 +337,8 @@ def verify_mode(
         dlam_linear_m=dlam,
         pose_points_m=points_m,
         exact_unassembled=unassembled,
+        dlam_exact_m=dl_exact if exact is not None and exact_samples > 0 else np.zeros(0),
+        target_m=target_m,
         tilt_linear_rad=tilt,
         tilt=tilt_stats,
         tilt_exact=tilt_exact_stats,

@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 import pkmtol.values as values
+from pkmtol.calibration.study import LINEAR_VALIDITY
 from pkmtol.error_model.accuracy import vector_norms
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
@@ -38,7 +39,7 @@ from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.perturbation import perturbed_limb_models
 from pkmtol.model.mechanism import Mechanism
-from pkmtol.statistics import wilson_interval
+from pkmtol.statistics import quantiles, wilson_interval
 
 DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
 #: Linear-model samples drawn and evaluated at a time.
@@ -152,6 +153,7 @@ class Verification:
         tilt_exact: The same on the exact subsample.
         joint: Linear statistics of ``max(Δλ/Δλ*, Δα/Δα*)`` against 1: its failure fraction is
             ``P(Δλ > Δλ* or Δα > Δα*)`` (None without an orientation target).
+        target_m: Δλ* [m] (the linear-validity check's scale).
     """
 
     distribution: str
@@ -167,12 +169,41 @@ class Verification:
     tilt: FailureStats | None = None
     tilt_exact: FailureStats | None = None
     joint: FailureStats | None = None
+    target_m: float = float("nan")
+
+    @property
+    def linear_gap_m(self) -> float:
+        """Largest gap of the row figures (mean, p95, p99 of Δλ), exact against linear [m].
+
+        On the same subsample; NaN without one (the study's measure, LINEAR_VALIDITY).
+        """
+        k = self.dlam_exact_m.size
+        ok = np.isfinite(self.dlam_exact_m)
+        if not k or not ok.any():
+            return float("nan")
+        return row_gap_m(self.dlam_exact_m[ok], self.dlam_linear_m[:k][ok])
+
+    @property
+    def linear_valid(self) -> bool:
+        """Whether the linear figures are within :data:`LINEAR_VALIDITY` of Δλ* of the exact ones."""
+        return not self.linear_gap_m > LINEAR_VALIDITY * self.target_m
 
     @property
     def points_m(self) -> np.ndarray:
         """Shape (samples, 3): the point of every sample [m] (made on demand)."""
         m = len(self.pose_points_m)
         return self.pose_points_m[np.arange(self.dlam_linear_m.size) % m]
+
+
+def row_gap_m(exact_m: np.ndarray, linear_m: np.ndarray) -> float:
+    """Largest difference of mean, p95 and p99 of Δλ between exact and linear samples [m].
+
+    The measure of the calibration study's linear-validity check
+    (:attr:`pkmtol.calibration.study.ErrorSummary.linear_gap_m`), on two sample arrays.
+    """
+    (e95, e99), (l95, l99) = quantiles(exact_m, (0.95, 0.99)), quantiles(linear_m, (0.95, 0.99))
+    gaps = [abs(float(np.mean(exact_m)) - float(np.mean(linear_m))), abs(e95 - l95), abs(e99 - l99)]
+    return float(np.nanmax(gaps))
 
 
 def verify(
@@ -326,6 +357,7 @@ def _verification(
         pose_points_m=np.asarray(points),
         exact_unassembled=unassembled,
         dlam_exact_m=dl_exact if dl_exact is not None else np.zeros(0),
+        target_m=target_m,
     )
 
 

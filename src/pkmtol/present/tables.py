@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 import pkmtol.values as values
+from pkmtol.calibration.study import LINEAR_WARNING
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
@@ -96,6 +97,9 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
         d["linear_on_exact_subsample"] = None if v.linear_subsample is None else _stats(v.linear_subsample)
         d["max_exact_linear_difference_over_target"] = _num(v.max_relative_difference)
         d["exact_unassembled"] = v.exact_unassembled
+        d["linear_gap_m"] = _num(v.linear_gap_m)
+        d["linear_valid"] = v.linear_valid
+        d["warning"] = None if v.linear_valid else LINEAR_WARNING
         ver[name] = d
     return {
         "mechanism": r.mechanism.name,
@@ -452,10 +456,11 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
         ["errors", "model", "samples", "mean Δλ [µm]", "std Δλ [µm]", "failures [%]", "95 % CI [%]", "R [%]"]
     ]
     for name, v in r.verification.items():
+        flag = "" if v.linear_valid else " (!)"  # linear figures off the exact ones beyond 5 % of Δλ*
         for label, s in (
-            ("linear", v.linear),
+            ("linear" + flag, v.linear),
             ("exact", v.exact),
-            ("linear (same subsample)", v.linear_subsample),
+            ("linear (same subsample)" + flag, v.linear_subsample),
         ):
             if s is None:
                 continue
@@ -471,7 +476,14 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
                     f"{100 * s.reliability:.2f}",
                 ]
             )
-    out += [table(vrows), "", *headline_lines(r)]
+    out += [table(vrows), ""]
+    out += [
+        f"warning: {name} (!): {LINEAR_WARNING} (the exact and linear mean/p95/p99 of Δλ differ by "
+        f"{v.linear_gap_m * 1e6:.2f} µm, beyond 5 % of Δλ* = {0.05 * r.target_m * 1e6:.2f} µm)"
+        for name, v in r.verification.items()
+        if not v.linear_valid
+    ]
+    out += headline_lines(r)
     out += [
         f"exact kinematics ({name}): {v.exact_unassembled} sample(s) could not be assembled (the "
         "errors include assembly errors no rigid motion satisfies: over-constrained mechanism) "
