@@ -378,7 +378,7 @@ CASES: list[Case] = [
     Case("Python API", "`DesignOptions(samples=2000.0)`", lambda t: DesignOptions(samples=2000.0), IA, ("samples", "whole number")),  # type: ignore[arg-type]
     Case("Python API", "`DesignOptions(seed=-1)`", lambda t: DesignOptions(seed=-1), IA, ("seed", "≥ 0"), {"argument": "seed"}),
     Case("Python API", "`DesignOptions(method=\"fast\")`", lambda t: DesignOptions(method="fast"), IA, ("method", "'fosm', 'exact', 'cost'")),
-    Case("Python API", "a criterion with `method=\"fosm\"`", lambda t: DesignOptions(criterion="worst"), IA, ("criterion", "only method 'exact'"), {"argument": "criterion"}),
+    Case("Python API", "a criterion with `method=\"fosm\"`", lambda t: DesignOptions(method="fosm", criterion="worst"), IA, ("criterion", "only method 'exact'"), {"argument": "criterion"}),
     Case("Python API", "a misspelt parameter set", lambda t: DesignOptions(parameter_set="dhh"), IA, ("parameter_set", "did you mean 'dh'")),
     Case("Python API", "an empty β series", lambda t: DesignOptions(betas=()), IA, ("betas", "positive")),
     Case("Python API", "a run that does not fit in memory", lambda t: check_memory(seed_mech(), DesignOptions(samples=10**11), available_bytes=8e9), E.ResourceLimitError, ("samples", "more than the 8 GB available", "at most about"), {"argument": "samples"}),
@@ -397,7 +397,8 @@ CASES: list[Case] = [
     Case("Command line", "`--target 50` (no unit)", cli("allocate", "{robot}", "--target", "50"), IA, ("--target 50", "has no unit"), {"argument": "--target"}),
     Case("Command line", "`--target 0mm`", cli("allocate", "{robot}", "--target", "0mm"), IA, ("--target 0mm", "must be positive")),
     Case("Command line", "`--beta 0`", cli("allocate", "{robot}", "--beta", "0"), IA, ("--beta", "β must be positive"), {"argument": "--beta"}),
-    Case("Command line", "`--criterion` with `--method fosm`", cli("allocate", "{robot}", "--criterion", "worst"), IA, ("--criterion worst", "--method exact"), {"argument": "--criterion"}),
+    Case("Command line", "`--criterion` with `--method fosm`", cli("allocate", "{robot}", "--method", "fosm", "--criterion", "worst"), IA, ("--criterion worst", "--method exact"), {"argument": "--criterion"}),
+    Case("Command line", "`sweep --criterion` with `--method fosm`", cli("sweep", "{robot}", "--vary", "task_space.radius_m=0.5:0.6:2", "--method", "fosm", "--criterion", "worst"), IA, ("--criterion worst", "--method exact"), {"argument": "--criterion"}),
     Case("Command line", "a huge `--samples`", cli("allocate", "{robot}", "--samples", "1000000000000"), E.ResourceLimitError, ("--samples 1000000000000", "needs about", "at most about"), {"argument": "--samples"}),
     Case("Command line", "`--html` into a folder that does not exist", cli("allocate", "{robot}", "--html", "{tmp}/no/s.html", *SMALL), E.OutputError, ("s.html", "does not exist")),
     Case("Command line", "`--out` that is a file", cli("allocate", "{robot}", "--out", "{robot}/mechanism.toml", *SMALL), E.OutputError, ("mechanism.toml",)),
