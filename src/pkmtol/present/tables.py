@@ -22,7 +22,16 @@ from pkmtol.calibration.study import LINEAR_WARNING
 from pkmtol.design.job import DesignResult
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.exceptions import OutputError
-from pkmtol.present.headline import claim_line, headline_lines
+from pkmtol.present.design_tables import (
+    claim_json,
+    csv_tolerance,
+    linear_validity_lines,
+    method_lines,
+    method_rows,
+    verified_tolerances,
+)
+from pkmtol.present.design_tables import fmt_tolerance as _fmt_tol
+from pkmtol.present.headline import headline_lines
 from pkmtol.present.hybrid_tables import hybrid_ideal_text, sub_assemblies, sub_assembly_lines
 from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
 from pkmtol.units import display, display_unit
@@ -30,16 +39,6 @@ from pkmtol.units import display, display_unit
 
 def _num(x: float) -> float | None:
     return None if not math.isfinite(x) else float(x)
-
-
-def _fmt_tol(x: float, unit: str, units: str = "mm") -> str:
-    """``±0.0128`` (4 decimals), or 3 significant digits below 0.001 so that it never reads ±0.0000."""
-    if math.isnan(x):
-        return "noise floor"
-    if not math.isfinite(x):
-        return "+inf"
-    v = display(x, unit, units)
-    return f"±{v:.4f}" if abs(v) >= 1e-3 or v == 0 else f"±{v:.3g}"
 
 
 def _coord(x_m: float) -> str:
@@ -175,38 +174,6 @@ def to_json_dict(r: DesignResult) -> dict[str, Any]:
     }
 
 
-def claim_json(r: DesignResult) -> dict[str, Any] | None:
-    """The claim of the verified design: its scope, the grid reliability, the verification's misses."""
-    c = r.claim
-    if c is None:
-        return None
-    return {
-        "method": c.method,
-        "scope": c.scope,
-        "where": c.where,
-        "claimed_reliability": c.claimed,
-        "text": claim_line(c, r.compensation == "calibrated"),
-        "design_grid_pose": c.design_pose,
-        "unit_error_grid_pose": r.search.worst_index_analytic,
-        "joint_position_and_tilt": c.joint,
-        "grid_reliability": c.reliability.tolist(),
-        "grid_min_reliability": c.min_reliability,
-        "grid_min_pose": c.min_pose,
-        "grid_mean_reliability": c.mean_reliability,
-        "verification_misses": [
-            {
-                "distribution": m.distribution,
-                "model": m.model,
-                "reliability": m.reliability,
-                "ci95": list(m.interval),
-                "samples": m.samples,
-            }
-            for m in r.claim_misses
-        ],
-        "exact_samples_cap": r.exact_samples_cap,
-    }
-
-
 def _orientation_json(r: DesignResult) -> dict[str, Any]:
     o = r.orientation
     assert o is not None
@@ -250,7 +217,11 @@ def to_json(r: DesignResult) -> str:
 
 def table_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
     """Rows of the tolerance table (the paper's Table III) with a header row (``units``: mm or um)."""
-    header = ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas] + SHARE_HEADER
+    m = r.method_design
+    design = [] if m is None else [f"{m.method} design"]  # the verified design's σ, beside the FOSM series
+    header = (
+        ["No.", "parameter", "unit", "sensitivity"] + [f"β={b:g}" for b in r.betas] + design + SHARE_HEADER
+    )
     rows = [header]
     fallback = r.fallback_pose if r.fallback_pose is not None else np.full(len(r.pset), -1)
     share = share_cells(r)  # of the FOSM design at the design β
@@ -260,6 +231,7 @@ def table_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
         rows.append(
             [str(k), name, display_unit(p.unit, units), f"{r.sensitivity[i]:.4f} {_sens_unit(p.unit)}"]
             + [_fmt_tol(t, p.unit, units) for t in r.tolerances[i]]
+            + ([] if m is None else [_fmt_tol(m.sigma[k - 1], p.unit, units)])
             + share[int(i)]
         )
     return rows
@@ -441,7 +413,10 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
         f"(sampled worst at grid point {r.search.worst_index}, analytic at {r.search.worst_index_analytic})",
         _search_agreement(r),
         *compensation_lines(r),
-        h(_MODE_TITLE.get(r.compensation, _MODE_TITLE["ideal"])),
+        h(
+            _MODE_TITLE.get(r.compensation, _MODE_TITLE["ideal"])
+            + ("" if r.method_design is None else f"; the verified '{r.method_design.method}' design")
+        ),
         "R = Φ(β): "
         + ", ".join(f"β={b:g}: {100 * p:.2f} %" for b, p in zip(r.betas, r.reliability_fosm, strict=True)),
         "",
@@ -477,13 +452,7 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
                 ]
             )
     out += [table(vrows), ""]
-    out += [
-        f"warning: {name} (!): {LINEAR_WARNING} (the exact and linear mean/p95/p99 of Δλ differ by "
-        f"{v.linear_gap_m * 1e6:.2f} µm, beyond 5 % of Δλ* = {0.05 * r.target_m * 1e6:.2f} µm)"
-        for name, v in r.verification.items()
-        if not v.linear_valid
-    ]
-    out += headline_lines(r)
+    out += linear_validity_lines(r) + headline_lines(r)
     out += [
         f"exact kinematics ({name}): {v.exact_unassembled} sample(s) could not be assembled (the "
         "errors include assembly errors no rigid motion satisfies: over-constrained mechanism) "
@@ -566,49 +535,6 @@ def claim_rows(r: DesignResult) -> list[list[str]]:
     return rows
 
 
-def method_lines(r: DesignResult) -> list[str]:
-    """Summary lines of an exact/cost design."""
-    m = r.method_design
-    assert m is not None
-    return [
-        f"target R* = Φ({r.design_beta:g}) = {100 * m.target_reliability:.4f} %, criterion '{m.criterion}': "
-        f"exact R at the worst pose {100 * m.reliability[r.worst_index]:.4f} %, min over the grid "
-        f"{100 * m.reliability.min():.4f} %, mean {100 * m.reliability.mean():.4f} %",
-        f"total cost {m.cost:.4g} (cost model of docs/theory.md); the equal-effect design with the same "
-        f"true R (min over the grid) costs {m.reference_cost:.4g}",
-    ]
-
-
-def method_rows(r: DesignResult, units: str = "mm") -> list[list[str]]:
-    """Per-parameter tolerances of the exact/cost design beside the equal-effect ones."""
-    m = r.method_design
-    assert m is not None
-    rows = [
-        [
-            "parameter",
-            "unit",
-            f"{m.method} design",
-            "equal effect, same true R",
-            "FOSM β=" + f"{r.design_beta:g}",
-            *SHARE_HEADER,
-        ]
-    ]
-    share = share_cells(r, method=True)
-    for k, i in enumerate(r.uncompensatable):
-        p = r.pset.parameters[i]
-        rows.append(
-            [
-                p.name,
-                display_unit(p.unit, units),
-                _fmt_tol(m.sigma[k], p.unit, units),
-                _fmt_tol(m.reference_sigma[k], p.unit, units),
-                _fmt_tol(r.tolerances[i, r.design_column], p.unit, units),
-                *share[int(i)],
-            ]
-        )
-    return rows
-
-
 def to_csv(r: DesignResult, units: str = "mm") -> str:
     """CSV of every parameter: class, sensitivity, tolerances per β (display units: mm/mrad or µm/µrad)."""
     buf = io.StringIO()
@@ -618,8 +544,9 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
     w.writerow(
         ["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
         + [f"tolerance_beta_{b:g}" for b in r.betas]
-        + [f"traditional_tolerance_beta_{r.design_beta:g}", *SHARE_CSV]
+        + [f"traditional_tolerance_beta_{r.design_beta:g}", *SHARE_CSV, "design_tolerance"]
     )
+    design = {int(i): t for i, t in zip(r.uncompensatable, verified_tolerances(r), strict=True)}
     for i, p in enumerate(r.pset.parameters):
         u = p.unit
         tols = [
@@ -632,6 +559,7 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
             + tols
             + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u, units):.6g}")]
             + share.get(i, ["", "", ""])
+            + [csv_tolerance(design.get(i), u, units)]
         )
     return buf.getvalue()
 
