@@ -127,7 +127,16 @@ def test_calibrated_design_pose_counts_the_noise(mech, monkeypatch):
     np.testing.assert_allclose(total_variance(maps, unc, s), part + noise, rtol=1e-12)
     # 29.5: the capped exact samples say so
     assert r.exact_samples_cap == 2 and r.verification["gaussian"].exact.samples <= 2
-    assert any("--exact-samples capped at 2 under --compensation calibrated" in x for x in headline_lines(r))
+    assert any(
+        "note: --exact-samples 3 capped at 2 under --compensation calibrated" in x for x in headline_lines(r)
+    )
+    # and a cap by another option: the verification's poses by the sample count
+    caps = allocate(
+        mech, DesignOptions(**{**CHEAP, "verification_poses": 5000, "method": "fosm"})
+    ).option_caps
+    assert caps == (
+        ("--verification-poses", 5000, 1000, "by --samples (at most one distinct pose per sample)"),
+    )
 
 
 # --- 29.6: a failed verification is in the last lines ------------------------------------------------

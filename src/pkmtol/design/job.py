@@ -170,6 +170,8 @@ class DesignResult:
             95 % interval (empty: the verification agrees).
         exact_samples_cap: The exact verification samples the mode ran when it capped
             ``exact_samples`` (None: not capped).
+        option_caps: Each option the run used less of than asked: ``(option, asked, used, why)``
+            (the command prints one line per cap).
     """
 
     mechanism: Mechanism
@@ -202,6 +204,7 @@ class DesignResult:
     claim: Claim | None = None
     claim_misses: list[Miss] = field(default_factory=list)
     exact_samples_cap: int | None = None
+    option_caps: tuple[tuple[str, int, int, str], ...] = ()
 
     @property
     def worst_point_m(self) -> np.ndarray:
@@ -419,7 +422,24 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         claim=claim,
         claim_misses=verification_misses(ver, claim.claimed),
         exact_samples_cap=exact_cap(mode, opt.exact_samples),
+        option_caps=_option_caps(opt),
     )
+
+
+def _option_caps(opt: DesignOptions) -> tuple[tuple[str, int, int, str], ...]:
+    """The options the run uses less of than asked, ``(option, asked, used, why)`` (DesignResult)."""
+    caps = []
+    cap = exact_cap(opt.compensation, opt.exact_samples)
+    if cap is not None:
+        why = f"under --compensation {opt.compensation} (each exact sample is a whole simulated calibration)"
+        caps.append(("--exact-samples", opt.exact_samples, min(cap, opt.samples), why))
+    elif opt.exact_samples > opt.samples:
+        why = "by --samples (the exact subsample is the first linear samples)"
+        caps.append(("--exact-samples", opt.exact_samples, opt.samples, why))
+    if opt.verification_poses > opt.samples:
+        why = "by --samples (at most one distinct pose per sample)"
+        caps.append(("--verification-poses", opt.verification_poses, opt.samples, why))
+    return tuple(caps)
 
 
 class StageClock:

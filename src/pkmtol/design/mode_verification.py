@@ -59,7 +59,8 @@ MODE_CHUNK = 16_384
 #: Most exact verification samples of the ``calibrated`` mode, Gaussian errors only. Each is its own
 #: machine (its own draw, measured, identified and compensated on exact kinematics) at its own
 #: random pose, so the Wilson interval is over machines: 11 failures of 500 give [1.23, 3.90] %,
-#: which tells 2.3 % from 4.6 %. On the seed robot one costs about 29 ms (docs/claims.md). The thorough check is `pkmtol calibrate --simulate --tolerances allocation.json`.
+#: which tells 2.3 % from 4.6 %. On the seed robot one costs about 29 ms (docs/claims.md). The
+#: thorough check is `pkmtol calibrate --simulate --tolerances allocation.json`.
 CALIBRATED_EXACT_SAMPLES = 500
 
 

@@ -70,6 +70,9 @@ def claim_json(r: DesignResult) -> dict[str, Any] | None:
             for m in r.claim_misses
         ],
         "exact_samples_cap": r.exact_samples_cap,
+        "option_caps": [
+            {"option": o, "asked": asked, "used": used, "why": why} for o, asked, used, why in r.option_caps
+        ],
     }
 
 

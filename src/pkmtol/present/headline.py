@@ -45,12 +45,8 @@ def claim_line(c: Claim, calibrated: bool = False) -> str:
 def headline_lines(r: Any) -> list[str]:
     """The claim line, a line per verification miss and per capped option of a ``DesignResult``."""
     out = []
-    if r.exact_samples_cap is not None:
-        out.append(
-            f"note: --exact-samples capped at {r.exact_samples_cap} under --compensation {r.compensation} "
-            f"(each exact sample is a whole simulated calibration); the exact rows have "
-            f"{r.exact_samples_cap} samples"
-        )
+    for option, asked, used, why in r.option_caps:
+        out.append(f"note: {option} {asked} capped at {used} {why}")
     if r.claim is None:
         return out
     out.append(claim_line(r.claim, r.compensation == "calibrated"))
