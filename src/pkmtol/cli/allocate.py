@@ -19,6 +19,7 @@ from pkmtol.cli.common import (
 )
 from pkmtol.design.budget import check_memory
 from pkmtol.design.job import DesignOptions, DesignResult, allocate
+from pkmtol.design.mode_verification import CALIBRATED_EXACT_SAMPLES
 from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
@@ -70,7 +71,9 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "--exact-samples",
         type=int,
         default=1_000,
-        help="exact-kinematics verification samples per distribution (default 1000)",
+        help="exact-kinematics verification samples per distribution (default 1000; under "
+        f"--compensation calibrated at most {CALIBRATED_EXACT_SAMPLES}, Gaussian only, each a simulated "
+        "calibration of its own machine; a cap prints a note)",
     )
     p.add_argument(
         "--verification-poses",
