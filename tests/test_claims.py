@@ -219,3 +219,17 @@ def test_a_free_error_with_zero_sigma_gets_no_drawing_callout(mech):
     sigma[pset.names.index("δa_{1,1}")] = 0.0
     after = {d.name for d in drawing_tolerances(mech, pset, cols, sigma, DrawingSettings())}
     assert after == set(before) - {"δa_{1,1}"}
+
+
+def test_nothing_left_to_tolerance_is_a_design_not_an_error(mech, default):
+    """Under calibrated the Delta identifies every error: the default exact design has nothing to
+    scale ('the design reaches the target at any scale' before); its reliability is the noise's."""
+    from pkmtol.design.methods import method_design_for
+
+    r = default
+    none = np.zeros(0, dtype=int)
+    d = method_design_for(
+        mech, r.pset, r.grid, none, np.zeros(0), r.target_m, 2.0, r.worst_index, DesignOptions(), maps=r.maps
+    )
+    assert d.sigma.size == 0 and d.cost == 0.0 and d.reliability.shape == (147,)
+    np.testing.assert_array_equal(d.reliability, 1.0)  # no noise in the ideal mode: Δλ = 0

@@ -19,7 +19,7 @@ import pkmtol.values as values
 from pkmtol.design.cost import cost_model, cost_optimal
 from pkmtol.design.exact import bracket_log_scale, criterion_value, scale_design
 from pkmtol.design.orientation import joint_covariance, joint_reliability
-from pkmtol.design.reliability import reliability_fosm
+from pkmtol.design.reliability import exact_reliability_many, reliability_fosm
 from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
@@ -110,6 +110,8 @@ def method_design_for(
         N = maps.position_noise
         extra = maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
     model = cost_model([pset.parameters[i] for i in unc], mechanism.extra.get("cost"))
+    if not np.asarray(unc).size:
+        return _nothing_toleranced(opt, maps, target, r_star, extra, orientation)
     if orientation is not None:
         if opt.method == "cost":
             raise InvalidRequestError(
@@ -144,6 +146,40 @@ def method_design_for(
         reference_sigma=reference[0],
         reference_cost=model.cost(reference[0]),
         joint=orientation is not None,
+    )
+
+
+def _nothing_toleranced(
+    opt: MethodChoice,
+    maps: AccuracyMaps,
+    target: float,
+    r_star: float,
+    extra: np.ndarray | None,
+    orientation: tuple[np.ndarray, float] | None,
+) -> MethodDesign:
+    """The design with no toleranced parameter (a calibration identifies every error): nothing to scale.
+
+    Its reliability is the noise's alone; when that misses R* somewhere, no tolerance can help.
+    """
+    m = len(maps.position)
+    if orientation is not None:
+        rel = joint_reliability(
+            joint_covariance(maps, np.zeros(maps.position.shape[2]), orientation[0]), target, orientation[1]
+        )
+    elif extra is not None:
+        rel = exact_reliability_many(extra, target)[0]
+    else:
+        rel = np.ones(m)
+    if rel.min() < r_star:
+        raise InvalidRequestError(
+            f"nothing is left to tolerance, and the tracker noise alone gives R = {100 * rel.min():.2f} % "
+            f"< {100 * r_star:.2f} % at grid pose {int(np.argmin(rel))}: measure more poses, use a "
+            "more precise tracker, or relax Δλ* or β"
+        )
+    empty = np.zeros(0)
+    criterion = "every" if opt.method == "cost" else opt.criterion
+    return MethodDesign(
+        opt.method, criterion, r_star, empty, rel, 0.0, empty, 0.0, joint=orientation is not None
     )
 
 
