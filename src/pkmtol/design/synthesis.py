@@ -224,6 +224,8 @@ class Synthesis:
         reference: The robot as given (its tolerances feed ``sigma_reference_m``).
         variants: One per combination of the values, the last key varying fastest.
         executor: Where the variants ran.
+        method: The design method of the tolerances (as ``allocate --method``).
+        criterion: Its criterion (``exact``).
     """
 
     robot: str
@@ -233,6 +235,8 @@ class Synthesis:
     reference: Variant
     variants: tuple[Variant, ...]
     executor: str
+    method: str = DEFAULT_METHOD
+    criterion: str = DEFAULT_CRITERION
 
 
 @dataclass(frozen=True, eq=False)
@@ -317,6 +321,8 @@ def synthesize(
         reference=reference,
         variants=tuple(variants),
         executor=(executor or Executor()).describe(),
+        method=method,
+        criterion=criterion,
     )
 
 

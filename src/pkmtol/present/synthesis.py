@@ -85,7 +85,12 @@ def summary_text(s: Synthesis) -> str:
         text_table(summary_rows(s)),
     ]
     if len(s.variants) <= 12:
-        lines += ["", f"tolerances at β = {s.design_beta:g} (mm, mrad):", text_table(tolerance_rows(s))]
+        how = s.method + (f", criterion {s.criterion}" if s.method == "exact" else "")
+        lines += [
+            "",
+            f"tolerances at β = {s.design_beta:g} (mm, mrad), the '{how}' design of allocate:",
+            text_table(tolerance_rows(s)),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -111,6 +116,8 @@ def to_json(s: Synthesis) -> str:
         "robot": s.robot,
         "parameter_set": s.parameter_set,
         "design_beta": s.design_beta,
+        "method": s.method,
+        "criterion": s.criterion,
         "varied": {v.key: list(v.values) for v in s.varies},
         "units": "tolerances in m or rad (their parameter's unit); σ in m; free tolerance = null",
         "reference": _variant_dict(s, s.reference),
