@@ -151,7 +151,7 @@ def test_dh_variant_regenerates_the_urdf_and_recloses_home(doc):
 
 def test_a_grid_of_variants_on_every_executor():
     varies = [parse_vary("limbs[limb1].dh.links[0][2]=0.45:0.55:2"), parse_vary("design.design_beta=1:2:2")]
-    serial = synthesize(SEED, varies)
+    serial = synthesize(SEED, varies, method="fosm")  # FOSM: σ ∝ 1/β below
     assert len(serial.variants) == 4
     assert [tuple(v.values.values()) for v in serial.variants] == [
         (0.45, 1.0),
@@ -163,7 +163,7 @@ def test_a_grid_of_variants_on_every_executor():
     np.testing.assert_allclose(serial.variants[0].tolerances, 2 * serial.variants[1].tolerances, rtol=1e-12)
     # ... the base radius does
     assert not np.allclose(serial.variants[0].tolerances, serial.variants[2].tolerances)
-    parallel = synthesize(SEED, varies, executor=Executor(workers=2))
+    parallel = synthesize(SEED, varies, executor=Executor(workers=2), method="fosm")
     for a, b in zip(serial.variants, parallel.variants, strict=True):
         np.testing.assert_array_equal(a.tolerances, b.tolerances)
         assert (a.sigma_unit_m, a.sigma_reference_m, a.cost) == (b.sigma_unit_m, b.sigma_reference_m, b.cost)
