@@ -61,6 +61,11 @@ class Tolerances:
     tolerances: np.ndarray
     tilt: TiltTolerances | None
 
+    def tilt_allocation(self) -> tuple[int, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The tilt's ``(worst pose, sensitivity, tolerances, binding)``, or None without a target."""
+        t = self.tilt
+        return None if t is None else (t.worst_index, t.sensitivity, t.tolerances, t.binding)
+
 
 def noise_variance(maps: AccuracyMaps, pose: int) -> float:
     """``σ_m² ‖N‖²_F`` of P at grid pose ``pose`` [m²] (0 without a calibration)."""

@@ -38,7 +38,7 @@ from pkmtol.design.mode_verification import (
     verification_poses,
     verify_design,
 )
-from pkmtol.design.modes import grid_model, mode_stage
+from pkmtol.design.modes import ModeSetup, grid_model, mode_stage
 from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, check_options
 from pkmtol.design.orientation import OrientationDesign, orientation_stage
 from pkmtol.design.pose_search import PoseSearch, search_sensitive_pose
@@ -291,106 +291,35 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
     rng = np.random.default_rng(opt.seed)
     pset = machine_parameter_set(mechanism, opt.parameter_set)  # a hybrid's: with its tool's
 
+    # one line per stage, so that the pipeline reads top to bottom
+    # fmt: off
     model = clock("error model on grid", grid_model, mechanism, pset, opt.progress)
     grid, chain = model.grid, model.chain
-    maps_stage = {"ideal": None, "calibrated": "calibration plan and maps", "none": "maps"}[mode]
-    setup = clock(
-        maps_stage,
-        mode_stage,
-        mechanism,
-        pset,
-        model,
-        mode,
-        opt.calibration,
-        target,
-        design_beta,
-        None if tilt is None else axis,
-    )
+    maps_name = {"ideal": None, "calibrated": "calibration plan and maps", "none": "maps"}[mode]
+    setup = clock(maps_name, mode_stage, mechanism, pset, model, mode, opt.calibration, target, design_beta,
+                  None if tilt is None else axis)
     unc, maps = setup.columns, setup.grid_maps
     search = clock("sensitive-pose search", search_sensitive_pose, maps.position[:, :, unc], opt.samples, rng)
     worst = search.worst_index_analytic
     if setup.plan is not None:  # the design pose with the tracker noise σ_m² ‖N‖² included
         worst = clock("design pose", noise_design_pose, maps, unc, worst, target, design_beta)
     noise = None if setup.plan is None else (setup.plan.settings.noise_m, setup.plan.poses)
-    tols = design_tolerances(
-        mechanism, pset, grid, maps, unc, worst, target, betas, design_beta, opt, noise, tilt, clock
-    )
-    fosm, tol, method_design, verified = tols.fosm, tols.fosm.tolerances, tols.method_design, tols.sigma
-    poses = clock(
-        "verification poses",
-        verification_poses,
-        mechanism,
-        pset,
-        grid,
-        setup,
-        chain,
-        min(opt.verification_poses, opt.samples),
-        rng,
-        opt.progress,
-    )
-    claims = clock(
-        "claimed vs true reliability",
-        claims_stage,
-        maps,
-        poses.maps,
-        worst,
-        unc,
-        tol,
-        betas,
-        target,
-        opt.samples,
-        rng,
-        opt.claim_poses,
-        opt.executor,
-    )
-    ver = clock(
-        "verification",
-        verify_design,
-        mechanism,
-        pset,
-        setup,
-        poses,
-        chain,
-        verified,
-        target,
-        opt.samples,
-        opt.exact_samples,
-        rng,
-        (axis, alpha_target),
-        opt.progress,
-        opt.executor,
-    )
-    traditional = clock(
-        "traditional method", traditional_design, grid.J_total, model.classes, worst, target, design_beta
-    )
-    sigma_full = np.zeros(len(pset))
-    sigma_full[unc] = np.where(np.isfinite(verified), verified, 0.0)
-    background = setup.background_sigma(pset)
-    if background is not None:
-        sigma_full[background[0]] = background[1]
-    claim = clock(
-        "claim",
-        design_claim,
-        maps,
-        unc,
-        verified,
-        target,
-        design_beta,
-        worst,
-        opt.method,
-        opt.criterion,
-        method_design,
-    )
-    t = fosm.tilt
-    od = orientation_stage(
-        maps,
-        unc,
-        sigma_full,
-        axis,
-        alpha_target,
-        worst,
-        None if t is None else (t.worst_index, t.sensitivity, t.tolerances, t.binding),
-    )
+    tols = design_tolerances(mechanism, pset, grid, maps, unc, worst, target, betas, design_beta, opt, noise,
+                             tilt, clock)  # FOSM ("allocation"), then the method ("<method> design")
+    poses = clock("verification poses", verification_poses, mechanism, pset, grid, setup, chain,
+                  min(opt.verification_poses, opt.samples), rng, opt.progress)
+    claims = clock("claimed vs true reliability", claims_stage, maps, poses.maps, worst, unc,
+                   tols.fosm.tolerances, betas, target, opt.samples, rng, opt.claim_poses, opt.executor)
+    ver = clock("verification", verify_design, mechanism, pset, setup, poses, chain, tols.sigma, target,
+                opt.samples, opt.exact_samples, rng, (axis, alpha_target), opt.progress, opt.executor)
+    traditional = clock("traditional method", traditional_design, grid.J_total, model.classes, worst, target,
+                        design_beta)
+    claim = clock("claim", design_claim, maps, unc, tols.sigma, target, design_beta, worst, opt.method,
+                  opt.criterion, tols.method_design)
+    od = clock(None, orientation_stage, maps, unc, _sigma_full(pset, setup, tols.sigma), axis, alpha_target,
+               worst, tols.fosm.tilt_allocation())
+    # fmt: on
+    fosm, tol, method_design = tols.fosm, tols.fosm.tolerances, tols.method_design
     return DesignResult(
         mechanism=mechanism,
         pset=pset,
@@ -424,6 +353,20 @@ def allocate(mechanism: Mechanism, options: DesignOptions | None = None) -> Desi
         exact_samples_cap=exact_cap(mode, opt.exact_samples),
         option_caps=_option_caps(opt),
     )
+
+
+def _sigma_full(pset: ParameterSet, setup: ModeSetup, sigma: np.ndarray) -> np.ndarray:
+    """Every parameter's σ in the verified design.
+
+    ``sigma`` on the toleranced ones, the background (identified) ones at their manufacturing σ,
+    0 elsewhere (free ones too).
+    """
+    full = np.zeros(len(pset))
+    full[setup.columns] = np.where(np.isfinite(sigma), sigma, 0.0)
+    background = setup.background_sigma(pset)
+    if background is not None:
+        full[background[0]] = background[1]
+    return full
 
 
 def _option_caps(opt: DesignOptions) -> tuple[tuple[str, int, int, str], ...]:
