@@ -233,3 +233,23 @@ def test_nothing_left_to_tolerance_is_a_design_not_an_error(mech, default):
     )
     assert d.sigma.size == 0 and d.cost == 0.0 and d.reliability.shape == (147,)
     np.testing.assert_array_equal(d.reliability, 1.0)  # no noise in the ideal mode: Δλ = 0
+
+
+def test_the_command_ends_with_its_notes_and_claim(tmp_path, capsys, monkeypatch):
+    """29.5, 29.6: a designer reads the last lines; they hold the cap notes and the scoped claim."""
+    from pkmtol.cli import main
+
+    monkeypatch.setattr(mode_verification, "CALIBRATED_EXACT_SAMPLES", 2)
+    small = ["--samples", "300", "--verification-poses", "50", "--no-figures", "--no-progress"]
+    args = ["allocate", str(SEED), *small, "--compensation", "calibrated", "--exact-samples", "3"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    last = capsys.readouterr().out.rstrip("\n").splitlines()[-2:]
+    assert last[0] == (
+        "note: --exact-samples 3 capped at 2 under --compensation calibrated (each exact sample is a "
+        "whole simulated calibration)"
+    )
+    assert last[1].startswith("claim (exact): R ≥ 97.72 % at every one of 147 grid poses (exact reliability ")
+    doc = json.loads((tmp_path / "a" / "allocation.json").read_text(encoding="utf-8"))
+    assert doc["claim"]["option_caps"] == [
+        {"option": "--exact-samples", "asked": 3, "used": 2, "why": last[0].split("capped at 2 ")[1]}
+    ]
