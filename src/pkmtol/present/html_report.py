@@ -30,6 +30,7 @@ from pkmtol.design.job import DesignResult
 from pkmtol.design.signoff import sign_off
 from pkmtol.exceptions import FiguresError, OutputError
 from pkmtol.files import write_atomic
+from pkmtol.present.headline import claim_line
 from pkmtol.present.provenance import Provenance, provenance
 from pkmtol.present.tables import summary_text
 
@@ -159,9 +160,10 @@ def _glance(r: DesignResult) -> str:
         ("mechanism", f"{r.mechanism.name} — {r.mechanism.description}".rstrip(" —")),
         (
             "requirement",
-            f"Δλ* = {1e3 * r.target_m:g} mm at P, β = {r.design_beta:g} (claimed R = Φ(β) = "
+            f"Δλ* = {1e3 * r.target_m:g} mm at P, β = {r.design_beta:g} (R* = Φ(β) = "
             f"{100 * so.reliability_target:.2f} %), compensation '{r.compensation}'",
         ),
+        *([] if r.claim is None else [("claim", claim_line(r.claim, r.compensation == "calibrated"))]),
         (
             "design",
             ("FOSM (Eq. 20)" if r.method_design is None else f"'{r.method_design.method}'")
