@@ -130,7 +130,7 @@ def verification_misses(verification: dict[str, Verification], claimed: float) -
     every pose implies that mean, and a claim at the design point only is checked against it too
     (the last lines of ``pkmtol allocate`` then say how far it falls short).
     """
-    misses = []
+    misses: list[Miss] = []
     v = verification.get("gaussian")
     if v is None:
         return misses

@@ -13,6 +13,7 @@ caller's generator, β by β and cell by cell as one draw per cell would.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -181,6 +182,10 @@ def find_root(f: Callable[[float], float], lo: float, hi: float, xtol: float = 1
     return x
 
 
+def _call_with(f: Callable[[float, np.ndarray], float], rows: np.ndarray, x: float) -> float:
+    return f(x, rows)
+
+
 def bracket_log_scale(
     excess: Callable[[float], float], limit: float, never: str, always: str
 ) -> tuple[float, float]:
@@ -229,7 +234,7 @@ def _every_root(
     r_lo = grid_reliability(J, base * math.exp(lo), target_m, extra)
     rows = np.sort(np.argsort(r_lo)[:8])
     while True:
-        root = find_root(lambda x, rows=rows: sub_excess(x, rows), lo, hi)
+        root = find_root(functools.partial(_call_with, sub_excess, rows), lo, hi)
         r_all = grid_reliability(J, base * math.exp(root), target_m, extra)
         short = np.setdiff1d(np.flatnonzero(r_all < r_star - 1e-12), rows)
         if not short.size:

@@ -79,6 +79,8 @@ def orientation_stage(
             when it has a target, else None (its sensitivities are then computed here).
     """
     tm = tilt_moments(maps, sigma_full, axis)
+    tolerances: np.ndarray | None
+    binding: np.ndarray | None
     if allocated is not None:
         worst, sens, tolerances, binding = allocated
     else:
