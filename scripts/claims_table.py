@@ -92,6 +92,7 @@ def main() -> None:
     ap.add_argument("--calibrated-machines", type=int, default=400)
     ap.add_argument("--modes", nargs="+", default=["ideal", "calibrated", "none"])
     ap.add_argument("--no-timing", action="store_true", help="skip the CPU-time runs at default samples")
+    ap.add_argument("--set", dest="pset", choices=["dh", "urdf"], default=None, help="parameter set")
     args = ap.parse_args()
     mech = load_mechanism(ROOT / "robots" / "r2rps_ups")
     rows, costs = [], []
@@ -107,6 +108,7 @@ def main() -> None:
                     claim_poses=20,
                     method=method,
                     compensation=mode,
+                    parameter_set=args.pset,
                 ),
             )
             results[method] = r
@@ -133,7 +135,7 @@ def main() -> None:
         if not args.no_timing:
             for method in ("fosm", "exact"):
                 t0 = time.process_time()
-                allocate(mech, DesignOptions(method=method, compensation=mode))
+                allocate(mech, DesignOptions(method=method, compensation=mode, parameter_set=args.pset))
                 cpu[method] = time.process_time() - t0
         costs.append(
             f"| {mode} | {model.cost(sf):.4g} | {model.cost(se):.4g} | "
