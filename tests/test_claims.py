@@ -8,7 +8,9 @@ from its exact figure is flagged; the two crashes of the sign-off are gone.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
 from pathlib import Path
 
@@ -29,7 +31,7 @@ from pkmtol.error_model.parameters import parameter_set
 from pkmtol.model.drawing import DrawingSettings
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.headline import claim_line, headline_lines
-from pkmtol.present.tables import summary_text, to_json
+from pkmtol.present.tables import summary_text, to_csv, to_json
 from pkmtol.statistics import wilson_interval
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,6 +100,14 @@ def test_headline_names_the_scope_of_every_method(mech, default):
     assert doc["claim"]["scope"] == "every" and doc["claim"]["text"] == line
     assert doc["claim"]["grid_min_reliability"] == pytest.approx(default.claim.min_reliability)
     assert summary_text(default).count(line) == 1
+    # the verified design's tolerances are in the CSV beside the FOSM series (mm / mrad)
+    rows = list(csv.reader(io.StringIO(to_csv(default))))
+    col = rows[0].index("design_tolerance")
+    by_name = {r[0]: r[col] for r in rows[1:]}
+    for k, i in enumerate(default.uncompensatable):
+        assert float(by_name[default.pset.names[i]]) == pytest.approx(
+            1e3 * default.method_design.sigma[k], rel=1e-5
+        )
 
 
 # --- 24.1: the calibrated design pose with the noise -------------------------------------------------

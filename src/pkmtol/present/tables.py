@@ -544,7 +544,7 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
     w.writerow(
         ["name", "unit", "class", "sensitivity_um_per_unit_um_or_urad"]
         + [f"tolerance_beta_{b:g}" for b in r.betas]
-        + [f"traditional_tolerance_beta_{r.design_beta:g}", *SHARE_CSV, "design_tolerance"]
+        + [f"traditional_tolerance_beta_{r.design_beta:g}", "design_tolerance", *SHARE_CSV]
     )
     design = {int(i): t for i, t in zip(r.uncompensatable, verified_tolerances(r), strict=True)}
     for i, p in enumerate(r.pset.parameters):
@@ -558,8 +558,8 @@ def to_csv(r: DesignResult, units: str = "mm") -> str:
             [p.name, display_unit(u, units), r.classes[i], f"{r.sensitivity[i]:.6g}"]
             + tols
             + ["" if tr is None else ("inf" if not math.isfinite(tr) else f"{display(tr, u, units):.6g}")]
-            + share.get(i, ["", "", ""])
             + [csv_tolerance(design.get(i), u, units)]
+            + share.get(i, ["", "", ""])
         )
     return buf.getvalue()
 
