@@ -263,3 +263,9 @@ def test_the_command_ends_with_its_notes_and_claim(tmp_path, capsys, monkeypatch
     assert doc["claim"]["option_caps"] == [
         {"option": "--exact-samples", "asked": 3, "used": 2, "why": last[0].split("capped at 2 ")[1]}
     ]
+
+
+def test_a_claim_with_nothing_to_tolerance_says_so(default):
+    c = dataclasses.replace(default.claim, toleranced=0, reliability=np.ones(147))
+    assert "nothing is left to tolerance: the mode removes every error" in claim_line(c)
+    assert "nothing is left" not in claim_line(default.claim)

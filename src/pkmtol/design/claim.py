@@ -43,6 +43,8 @@ class Claim:
             errors at the verified σ_i, tracker noise included; the joint position and tilt
             reliability when the design has an orientation target).
         joint: Whether ``reliability`` is the joint position and tilt reliability.
+        toleranced: How many parameters the design tolerances (0: the mode compensates or
+            identifies every error; the reliability is then the noise's alone).
     """
 
     method: str
@@ -51,6 +53,7 @@ class Claim:
     design_pose: int
     reliability: np.ndarray
     joint: bool = False
+    toleranced: int = -1
 
     @property
     def min_reliability(self) -> float:
@@ -98,10 +101,18 @@ def design_claim(
             design_pose=design_pose,
             reliability=np.asarray(method_design.reliability, dtype=float),
             joint=method_design.joint,
+            toleranced=int(np.asarray(unc).size),
         )
     s = np.where(np.isfinite(sigma), sigma, 0.0)
     rel = grid_reliability(maps.position[:, :, unc], s, target_m, noise_covariance(maps))
-    return Claim(method=method, scope="fosm", claimed=claimed, design_pose=design_pose, reliability=rel)
+    return Claim(
+        method=method,
+        scope="fosm",
+        claimed=claimed,
+        design_pose=design_pose,
+        reliability=rel,
+        toleranced=int(np.asarray(unc).size),
+    )
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,8 @@ def claim_line(c: Claim, calibrated: bool = False) -> str:
     """The claim of a design with its scope, in one line (reliabilities in %)."""
     m = c.reliability.size
     model = _model(c, calibrated)
+    if c.toleranced == 0:
+        model += "; nothing is left to tolerance: the mode removes every error"
     low = f"min R = {100 * c.min_reliability:.2f} % (grid pose {c.min_pose})"
     if c.scope == "every":
         return (
