@@ -102,10 +102,12 @@ class ContractCheck:
         claimed_reliability: The printed R (R* = Φ(design β)).
         target_m: Δλ* [m].
         machines: Machines drawn.
-        unconverged: ``(machine, why)`` of the machines whose identification did not converge;
-            they are left out of every pose (and counted here).
+        unconverged: ``(machine, why)`` of the machines whose identification did not converge.
+            They stay in the sample, measured as their controller was left (the identification's
+            last estimate; unsolved at every pose when it raised): leaving them out would describe
+            only the machines that happened to converge.
         poses: Per grid pose, the check.
-        dlambda_m: Shape (K, m): Δλ of every kept machine at every grid pose [m] (NaN: unsolved).
+        dlambda_m: Shape (K, m): Δλ of every machine at every grid pose [m] (NaN: unsolved).
         aggregate: Task-space share beyond Δλ* and its machine-bootstrap interval ``(f, low, high)``.
         aggregate_claimed: The claimed task-space failure (mean of the per-pose claims).
         wall_time_s: Wall time of the simulation [s].
@@ -283,14 +285,13 @@ def _mechanism_settings(design: DesignResult) -> CalibrationSettings:
 def _per_machine(
     outcomes: list[MachineOutcome], mode: str
 ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, str], ...]]:
-    """Exact and linear Δλ (K', m) [m] of the kept machines, and the machines left out (calibrated)."""
+    """Exact and linear Δλ (K, m) [m] of the machines, and those whose identification did not converge."""
     exact, linear, bad = [], [], []
     for k, o in enumerate(outcomes):
         if mode == "calibrated":
             case = o.cases[0]
-            if not case.converged:
+            if not case.converged:  # measured as its controller was left (NaN if the fit raised)
                 bad.append((k, case.failure or "not converged"))
-                continue
             exact.append(case.errors.dlambda_m)
             linear.append(np.linalg.norm(case.linear_position_m, axis=1))
         elif mode == "ideal":
