@@ -236,12 +236,11 @@ def check_contract(
     if maps.position_noise.shape[2] and maps.noise_m > 0:
         N = maps.position_noise
         noise_cov = maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
-    predicted = 1.0 - grid_reliability(maps.position[:, :, unc], sigma[unc], design.target_m, noise_cov)
-    noise_fail = (
-        np.zeros(len(held))
-        if noise_cov is None
-        else 1.0 - exact_reliability_many(noise_cov, design.target_m)[0]
-    )
+    r_linear = grid_reliability(maps.position[:, :, unc], sigma[unc], design.target_m, noise_cov)
+    predicted = np.clip(1.0 - r_linear, 0.0, 1.0)  # the quadrature's round-off can pass 1
+    noise_fail = np.zeros(len(held))
+    if noise_cov is not None:
+        noise_fail = np.clip(1.0 - exact_reliability_many(noise_cov, design.target_m)[0], 0.0, 1.0)
     claimed, scope = claim_of(design)
     poses = tuple(
         _pose_check(
