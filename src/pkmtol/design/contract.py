@@ -32,7 +32,13 @@ import numpy as np
 from pkmtol.calibration.intervals import machine_bootstrap
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
-from pkmtol.calibration.study import MachineOutcome, StudyCase, simulate_chunk, study_context
+from pkmtol.calibration.study import (
+    LINEAR_VALIDITY,
+    MachineOutcome,
+    StudyCase,
+    simulate_chunk,
+    study_context,
+)
 from pkmtol.design.exact import grid_reliability
 from pkmtol.design.reliability import exact_reliability_many, reliability_fosm
 from pkmtol.error_model.compensation import mode_maps
@@ -44,13 +50,11 @@ from pkmtol.statistics import quantiles, wilson_interval
 if TYPE_CHECKING:
     from pkmtol.design.job import DesignResult
 
-#: A pose's exact and linear Δλ differing by more than this fraction of Δλ* flags its linear figure.
-LINEAR_VALIDITY = 0.05
 #: Verdicts of a pose.
 VERDICTS = ("holds", "fails", "cannot hold here", "no claim here")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PoseCheck:
     """The contract at one grid pose (fractions in [0, 1]).
 
@@ -68,8 +72,8 @@ class PoseCheck:
         linear_gap_m: Largest difference of the pose's figures over the machines (mean, p95, p99 of
             Δλ), exact against the linear ``L δ + N ν`` (``J η`` under ``ideal``) of the same draws
             [m], as the study compares its rows (NaN: no linear figure, mode ``none``).
-        linear_valid: Whether that gap is within :data:`LINEAR_VALIDITY` of Δλ* (else: the linear
-            model is not valid here; use the exact figure).
+        linear_valid: Whether that gap is within the study's ``LINEAR_VALIDITY`` (5 %) of Δλ*
+            (else: the linear model is not valid here; use the exact figure).
         verdict: One of :data:`VERDICTS`.
         reason: Why, for ``cannot hold here`` and ``no claim here`` (empty otherwise).
     """
