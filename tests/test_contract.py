@@ -63,6 +63,7 @@ CASES = [
     ("tricept", "ideal"),
     ("tricept", "calibrated"),
     ("delta", "ideal"),
+    ("r2rps_ups", "none"),  # the traditional method: nominal commands
     pytest.param(
         "delta",
         "calibrated",
