@@ -86,7 +86,9 @@ def test_claim_holds_at_every_grid_pose(robot, mode):
     assert len(check.poses) == m == 147
     assert check.scope == f"every one of {m} grid poses"
     assert all(p.claimed == pytest.approx(1 - R_STAR, abs=1e-12) for p in check.poses)
-    assert all(p.machines == MACHINES and p.unsolved == 0 for p in check.poses)
+    # the study's limit: at most 10 % of the identifications may fail to converge (they are left out)
+    assert len(check.unconverged) <= 0.1 * MACHINES
+    assert all(p.machines == MACHINES - len(check.unconverged) and p.unsolved == 0 for p in check.poses)
     assert _not_holding(check) == []
     assert check.holds
     # the design's own linear model binds somewhere at R* (the criterion's minimum) ...

@@ -18,11 +18,15 @@ machine), so the check reuses the project's identification and compensation rath
 At each grid pose each machine contributes one Bernoulli trial (Δλ > Δλ*), so the Wilson interval of
 the failures across machines is the clustered interval of that pose; the task-space aggregate
 pools the poses and takes a bootstrap over whole machines (:mod:`pkmtol.calibration.intervals`).
-The claim holds at a pose when the claimed failure lies inside or above the 95 % interval.
+The claim holds at a pose when the claimed failure lies inside or above the 95 % interval. A machine
+whose identification does not converge is left out and named, as the study does; more than the
+study's 10 % of them, and no pose can hold its claim (the figures would describe only the machines
+that happened to converge).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -34,6 +38,7 @@ from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
 from pkmtol.calibration.study import (
     LINEAR_VALIDITY,
+    MAX_UNCONVERGED,
     MachineOutcome,
     StudyCase,
     simulate_chunk,
@@ -41,7 +46,7 @@ from pkmtol.calibration.study import (
 )
 from pkmtol.design.exact import grid_reliability
 from pkmtol.design.reliability import exact_reliability_many, reliability_fosm
-from pkmtol.error_model.compensation import mode_maps
+from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.executor import Executor, map_chunks
 from pkmtol.kinematics.closed_chain import ClosedChain
@@ -66,7 +71,7 @@ class PoseCheck:
         measured: Share of the machines beyond Δλ* here (unsolved machines count as failed).
         low: Lower end of its 95 % Wilson interval (one trial per machine).
         high: Upper end.
-        machines: Machines measured here.
+        machines: Machines counted here (all but those whose identification did not converge).
         unsolved: Of them, those that could not be solved here (cannot be assembled or commanded).
         noise_failure: Failure of the tracker noise alone here (0 without a calibration).
         linear_gap_m: Largest difference of the pose's figures over the machines (mean, p95, p99 of
@@ -107,12 +112,15 @@ class ContractCheck:
         target_m: Δλ* [m].
         machines: Machines drawn.
         unconverged: ``(machine, why)`` of the machines whose identification did not converge.
-            They stay in the sample, measured as their controller was left (the identification's
-            last estimate; unsolved at every pose when it raised): leaving them out would describe
-            only the machines that happened to converge.
+            As in the calibration study, they are left out of the figures and named here; when
+            more than ``MAX_UNCONVERGED`` (10 %) of the machines are, every pose with a claim is
+            ``cannot hold here`` (the figures would describe only the machines that converged).
         poses: Per grid pose, the check.
-        dlambda_m: Shape (K, m): Δλ of every machine at every grid pose [m] (NaN: unsolved).
-        aggregate: Task-space share beyond Δλ* and its machine-bootstrap interval ``(f, low, high)``.
+        dlambda_m: Shape (K, m): Δλ of every machine at every grid pose [m] (NaN: unsolved), the
+            unconverged ones too (as their controller was left: the identification's last estimate).
+        converged: Shape (K,): the machines the figures count (all but the unconverged).
+        aggregate: Task-space share beyond Δλ* of the counted machines and its machine-bootstrap
+            interval ``(f, low, high)``.
         aggregate_claimed: The claimed task-space failure (mean of the per-pose claims).
         wall_time_s: Wall time of the simulation [s].
     """
@@ -127,6 +135,7 @@ class ContractCheck:
     unconverged: tuple[tuple[int, str], ...]
     poses: tuple[PoseCheck, ...]
     dlambda_m: np.ndarray
+    converged: np.ndarray
     aggregate: tuple[float, float, float]
     aggregate_claimed: float
     wall_time_s: float
@@ -234,32 +243,28 @@ def check_contract(
     outcomes = [o for part in map_chunks(simulate_chunk, tasks, executor) for o in part]
     wall = time.perf_counter() - t0
     exact, linear, unconverged = _per_machine(outcomes, design.compensation)
+    kept = np.ones(len(exact), dtype=bool)
+    kept[[k for k, _ in unconverged]] = False
+    blocked = ""
+    if len(unconverged) > MAX_UNCONVERGED * machines:
+        blocked = (
+            f"the identification of {len(unconverged)} of {machines} machines did not converge (more "
+            f"than {100 * MAX_UNCONVERGED:.0f} %; first: {unconverged[0][1]}): the figures would describe "
+            "only the machines that happened to converge"
+        )
     maps = ctx.cases[0].maps if ctx.cases else mode_maps(grid, design.compensation)
-    unc = np.asarray(design.uncompensatable, dtype=int)
-    noise_cov = None
-    if maps.position_noise.shape[2] and maps.noise_m > 0:
-        N = maps.position_noise
-        noise_cov = maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
-    r_linear = grid_reliability(maps.position[:, :, unc], sigma[unc], design.target_m, noise_cov)
-    predicted = np.clip(1.0 - r_linear, 0.0, 1.0)  # the quadrature's round-off can pass 1
-    noise_fail = np.zeros(len(held))
-    if noise_cov is not None:
-        noise_fail = np.clip(1.0 - exact_reliability_many(noise_cov, design.target_m)[0], 0.0, 1.0)
+    predicted, noise_fail = _linear_failures(maps, design.uncompensatable, sigma, design.target_m)
     claimed, scope = claim_of(design)
+    ek, lk = exact[kept], linear[kept]
     poses = tuple(
         _pose_check(
-            k,
-            held.points_m[k],
-            claimed[k],
-            predicted[k],
-            exact[:, k],
-            linear[:, k],
-            noise_fail[k],
-            design.target_m,
+            k, held.points_m[k], claimed[k], predicted[k], ek[:, k], lk[:, k], noise_fail[k], design.target_m
         )
         for k in range(len(held))
     )
-    failed = np.where(np.isfinite(exact), exact > design.target_m, True)
+    if blocked:
+        poses = tuple(_blocked(p, blocked) for p in poses)
+    failed = np.where(np.isfinite(ek), ek > design.target_m, True)
     aggregate = machine_bootstrap(failed, np.ones_like(failed, dtype=bool))
     with_claim = np.isfinite(claimed)
     return ContractCheck(
@@ -273,6 +278,7 @@ def check_contract(
         unconverged=unconverged,
         poses=poses,
         dlambda_m=exact,
+        converged=kept,
         aggregate=aggregate,
         aggregate_claimed=float(np.mean(claimed[with_claim])) if with_claim.any() else float("nan"),
         wall_time_s=wall,
@@ -288,12 +294,12 @@ def _mechanism_settings(design: DesignResult) -> CalibrationSettings:
 def _per_machine(
     outcomes: list[MachineOutcome], mode: str
 ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, str], ...]]:
-    """Exact and linear Δλ (K, m) [m] of the machines, and those whose identification did not converge."""
+    """Exact and linear Δλ (K, m) [m] of every machine, and those whose identification did not converge."""
     exact, linear, bad = [], [], []
     for k, o in enumerate(outcomes):
         if mode == "calibrated":
             case = o.cases[0]
-            if not case.converged:  # measured as its controller was left (NaN if the fit raised)
+            if not case.converged:  # as its controller was left (NaN if the fit raised)
                 bad.append((k, case.failure or "not converged"))
             exact.append(case.errors.dlambda_m)
             linear.append(np.linalg.norm(case.linear_position_m, axis=1))
@@ -306,6 +312,30 @@ def _per_machine(
     m = outcomes[0].before.dlambda_m.size if outcomes else 0
     as_array = lambda rows: np.array(rows) if rows else np.zeros((0, m))  # noqa: E731
     return as_array(exact), as_array(linear), tuple(bad)
+
+
+def _linear_failures(
+    maps: AccuracyMaps, unc: np.ndarray, sigma: np.ndarray, target_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per pose: the linear model's failure at ``sigma`` and the tracker noise's alone (m,) each."""
+    cols = np.asarray(unc, dtype=int)
+    noise_cov = None
+    if maps.position_noise.shape[2] and maps.noise_m > 0:
+        N = maps.position_noise
+        noise_cov = maps.noise_m**2 * (N @ np.swapaxes(N, 1, 2))
+    r = grid_reliability(maps.position[:, :, cols], sigma[cols], target_m, noise_cov)
+    predicted = np.clip(1.0 - r, 0.0, 1.0)  # the quadrature's round-off can pass 1
+    noise = np.zeros(len(predicted))
+    if noise_cov is not None:
+        noise = np.clip(1.0 - exact_reliability_many(noise_cov, target_m)[0], 0.0, 1.0)
+    return predicted, noise
+
+
+def _blocked(p: PoseCheck, why: str) -> PoseCheck:
+    """``p`` as ``cannot hold here`` for ``why`` (a pose without a claim stays as it is)."""
+    if p.verdict == "no claim here":
+        return p
+    return dataclasses.replace(p, verdict="cannot hold here", reason=why)
 
 
 def _pose_check(
