@@ -142,6 +142,13 @@ def seed_mech() -> Mechanism:
     return load_mechanism(SEED)
 
 
+def contract_without_machines(tmp: Path) -> Any:
+    from pkmtol.design.contract import check_contract
+
+    small = DesignOptions(samples=300, verification_poses=30, exact_samples=0, claim_poses=10)
+    return check_contract(allocate(seed_mech(), small), machines=0)
+
+
 def locked_out(tmp: Path) -> Any:
     out = tmp / "busy"
     with RunFolder(out):
@@ -413,6 +420,7 @@ CASES: list[Case] = [
     Case("One tree with loops", "a loop whose two frames are on one body", _tree_loop_on_one_body, E.ClosedLoopError, ("same_body", "same body"), {"culprit": "same_body"}),
     Case("Command line", "`calibrate --instrument ballbar` with a reading in degrees", ballbar_reading_in_degrees, E.MeasurementFileError, ("'d'", "not a length unit")),
     Case("Command line", "`calibrate --plan-per-machine` without `--simulate`", cli("calibrate", "{robot}", "--plan-per-machine"), E.InvalidRequestError, ("--plan-per-machine", "give --simulate too")),
+    Case("Python API", "`check_contract(design, machines=0)`", contract_without_machines, IA, ("machines = 0", "integer ≥ 1"), {"argument": "machines"}),
     # ---- hybrid machines: a tool chain on the platform (docs/hybrid.md)
     Case("Hybrid machines", "`--tool-length` on a robot without a `[tool]` chain", cli("check", "{robot}", "--tool-length", "150mm"), IA, ("--tool-length 150mm", "has no tool chain"), {"argument": "--tool-length"}),
     Case("Hybrid machines", "`--lock-wrist` that leaves a wrist joint free", cli("check", str(HYBRID), "--lock-wrist", "wrist_a=45deg"), IA, ("--lock-wrist wrist_a=45deg", "missing wrist_c"), {"argument": "--lock-wrist"}),

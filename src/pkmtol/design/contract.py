@@ -216,9 +216,13 @@ def check_contract(
         InvalidArgumentError: ``machines`` or ``chunk`` not an integer ≥ 1, ``seed`` not an integer.
         InvalidRequestError: a hybrid machine's design (its TCP is not simulated here).
     """
-    for name, value, low in (("machines", machines, 1), ("chunk", chunk, 1), ("seed", seed, 0)):
+    for name, value, low, what in (
+        ("machines", machines, 1, "machines to build, e.g. 200"),
+        ("chunk", chunk, 1, "machines per chunk of work, e.g. 5"),
+        ("seed", seed, 0, "the random seed, e.g. 0"),
+    ):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise InvalidArgumentError(name, value, f"expected an integer ≥ {low}")
+            raise InvalidArgumentError(name, value, f"expected an integer ≥ {low} ({what})")
     mech = design.mechanism
     if mech.tool is not None:
         raise InvalidRequestError(
