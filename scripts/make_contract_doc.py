@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol import DesignOptions, allocate, load_mechanism
-from pkmtol.design.contract import ContractCheck, check_contract
+from pkmtol.design.contract import ContractCheck, PoseCheck, check_contract
 from pkmtol.exceptions import PkmtolError
 from pkmtol.executor import Executor
 from pkmtol.files import write_atomic
@@ -44,8 +44,9 @@ def _row(robot: str, mode: str, label: str, check: ContractCheck, alloc_s: float
     predicted = np.array([p.predicted for p in check.poses])
     w = check.worst
     f, lo, hi = check.aggregate
-    verdict = "holds" if check.holds else "**fails**"
-    counts = ", ".join(f"{n} {k}" for k, n in check.verdicts().items() if n)
+    v = check.verdicts()
+    verdict = "holds" if check.holds else "**fails**" if v["fails"] else "**cannot hold**"
+    counts = ", ".join(f"{n} {k}" for k, n in v.items() if n)
     unconv = f" ({len(check.unconverged)} unconverged)" if check.unconverged else ""
     spread = " / ".join(_pct(x) for x in (measured.min(), float(np.median(measured)), measured.max()))
     cells = [
@@ -65,19 +66,27 @@ def _row(robot: str, mode: str, label: str, check: ContractCheck, alloc_s: float
     return "| " + " | ".join(cells) + " |"
 
 
+def _pose_text(p: PoseCheck) -> str:
+    return f"pose {p.index}: {_pct(p.measured)} % [{_pct(p.low)}, {_pct(p.high)}]"
+
+
 def _details(robot: str, mode: str, label: str, check: ContractCheck) -> list[str]:
     out = []
-    bad = [p for p in check.poses if p.verdict not in ("holds", "no claim here")]
-    if bad:
-        worst = sorted(bad, key=lambda p: -p.measured)[:LISTED]
+    failing = [p for p in check.poses if p.verdict == "fails"]
+    if failing:
+        worst = sorted(failing, key=lambda p: -p.measured)[:LISTED]
+        listed = "; ".join(_pose_text(p) for p in worst)
         out.append(
-            f"- {robot}, {mode}, {label}: {len(bad)} of {len(check.poses)} poses do not hold; worst "
-            + "; ".join(
-                f"pose {p.index} {p.verdict} {_pct(p.measured)} % [{_pct(p.low)}, {_pct(p.high)}]"
-                + (f" ({p.reason})" if p.reason else "")
-                for p in worst
-            )
+            f"- {robot}, {mode}, {label}: the claim fails at {len(failing)} of {len(check.poses)} poses; "
+            f"worst {listed}"
         )
+    reasons: dict[str, list[int]] = {}
+    for p in check.poses:
+        if p.verdict == "cannot hold here":
+            reasons.setdefault(p.reason, []).append(p.index)
+    for reason, idx in reasons.items():
+        where = "every pose" if len(idx) == len(check.poses) else "poses " + ", ".join(map(str, idx))
+        out.append(f"- {robot}, {mode}, {label}: cannot hold at {where}: {reason}")
     invalid = [p for p in check.poses if not p.linear_valid]
     if invalid:
         gap = max(p.linear_gap_m for p in invalid)
