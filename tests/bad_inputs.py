@@ -396,6 +396,7 @@ CASES: list[Case] = [
     Case("Python API", "`load_closed_loop` given a number as the sidecar", lambda t: load_closed_loop(REPO / "tests/data/r2rps_ups_closed/robot.urdf", 5, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("sidecar", "file path"), {"argument": "sidecar"}),  # type: ignore[arg-type]
     Case("Python API", "`load_mjcf` given `None` as the file", lambda t: load_mjcf(None, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("path", "file path"), {"argument": "path"}),  # type: ignore[arg-type]
     Case("Python API", "`write_outputs` given something else than a result", lambda t: write_outputs("result", t / "o"), IA, ("result", "DesignResult")),  # type: ignore[arg-type]
+    Case("Python API", "`check_contract(design, machines=0)`", contract_without_machines, IA, ("machines = 0", "integer ≥ 1"), {"argument": "machines"}),
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),
     Case("Command line", "`--samples 0`", cli("allocate", "{robot}", "--samples", "0"), IA, ("--samples 0", "≥ 2"), {"argument": "--samples"}),
@@ -420,7 +421,6 @@ CASES: list[Case] = [
     Case("One tree with loops", "a loop whose two frames are on one body", _tree_loop_on_one_body, E.ClosedLoopError, ("same_body", "same body"), {"culprit": "same_body"}),
     Case("Command line", "`calibrate --instrument ballbar` with a reading in degrees", ballbar_reading_in_degrees, E.MeasurementFileError, ("'d'", "not a length unit")),
     Case("Command line", "`calibrate --plan-per-machine` without `--simulate`", cli("calibrate", "{robot}", "--plan-per-machine"), E.InvalidRequestError, ("--plan-per-machine", "give --simulate too")),
-    Case("Python API", "`check_contract(design, machines=0)`", contract_without_machines, IA, ("machines = 0", "integer ≥ 1"), {"argument": "machines"}),
     # ---- hybrid machines: a tool chain on the platform (docs/hybrid.md)
     Case("Hybrid machines", "`--tool-length` on a robot without a `[tool]` chain", cli("check", "{robot}", "--tool-length", "150mm"), IA, ("--tool-length 150mm", "has no tool chain"), {"argument": "--tool-length"}),
     Case("Hybrid machines", "`--lock-wrist` that leaves a wrist joint free", cli("check", str(HYBRID), "--lock-wrist", "wrist_a=45deg"), IA, ("--lock-wrist wrist_a=45deg", "missing wrist_c"), {"argument": "--lock-wrist"}),
