@@ -155,6 +155,14 @@ def test_fosm_design_fails_its_claim_at_its_worst_grid_pose():
     assert check.aggregate[1] <= 0.245 <= check.aggregate[2]
 
 
+def test_unassemblable_machines_cannot_hold_and_say_why():
+    """The Exechon is over-constrained: its drawn machines cannot be assembled, at any pose."""
+    check = check_contract(design("exechon", "ideal"), machines=4)
+    assert check.verdicts()["cannot hold here"] == len(check.poses) == 147
+    assert all(p.unsolved == 4 and "4 of 4 machines cannot be assembled" in p.reason for p in check.poses)
+    assert not check.holds
+
+
 def test_ideal_machine_measured_by_single_pose_forward_kinematics():
     """The check's Δλ is the true machine's exact FK at Eq. 25's commands (re-solved here pose by pose)."""
     d = design("tricept", "ideal")
