@@ -121,7 +121,7 @@ class ContractCheck:
         converged: Shape (K,): the machines the figures count (all but the unconverged).
         aggregate: Task-space share beyond Δλ* of the counted machines and its machine-bootstrap
             interval ``(f, low, high)``.
-        aggregate_claimed: The claimed task-space failure (mean of the per-pose claims).
+        aggregate_claimed: The claimed failure over the grid (pooled poses; NaN: no such claim).
         wall_time_s: Wall time of the simulation [s].
     """
 
@@ -150,31 +150,38 @@ class ContractCheck:
         """The pose with the largest measured failure (the first of equals)."""
         return max(self.poses, key=lambda p: (p.measured, -p.index))
 
+    @property
+    def aggregate_holds(self) -> bool | None:
+        """Whether the claimed failure over the grid lies inside or above its interval (None: no claim)."""
+        if not np.isfinite(self.aggregate_claimed):
+            return None
+        return bool(self.aggregate_claimed >= self.aggregate[1])
+
     def verdicts(self) -> dict[str, int]:
         """How many poses got each verdict."""
         return {v: sum(p.verdict == v for p in self.poses) for v in VERDICTS}
 
 
-def claim_of(design: DesignResult) -> tuple[np.ndarray, str]:
-    """The claimed failure at each grid pose (NaN: no claim there) and its scope in words.
+def claim_of(design: DesignResult) -> tuple[np.ndarray, float, str]:
+    """The claimed failure at each grid pose (NaN: no claim there), over the grid, and the scope in words.
 
-    ``exact`` / ``cost`` with criterion ``every`` claim ``R ≥ R*`` at every grid pose; ``worst`` at the
-    design point only; ``average`` on the grid mean (per pose: the design's own reliability there).
-    FOSM prints ``R = Φ(β)`` with no place; the check reads it as a task-space claim, the reading a
-    designer makes of its headline (issue 24) and the one the one-pose design does not keep.
+    ``exact`` / ``cost`` with criterion ``every`` claim ``R ≥ R*`` at every grid pose (so also over
+    the grid); ``worst`` at the design point only; ``average`` on the grid mean only. FOSM prints
+    ``R = Φ(β)`` with no place; the check reads it as a task-space claim, the reading a designer makes
+    of its headline (issue 24) and the one the one-pose design does not keep.
     """
     m = len(design.grid.poses)
-    r_star = float(reliability_fosm(design.design_beta))
     md = design.method_design
+    failure = 1.0 - (float(reliability_fosm(design.design_beta)) if md is None else md.target_reliability)
     if md is None:
-        return np.full(m, 1.0 - r_star), f"Φ(β) read over all {m} grid poses (FOSM designs at one pose)"
+        return np.full(m, failure), failure, f"Φ(β) read over all {m} grid poses (FOSM designs at one pose)"
     if md.criterion == "every":
-        return np.full(m, 1.0 - md.target_reliability), f"every one of {m} grid poses"
+        return np.full(m, failure), failure, f"every one of {m} grid poses"
+    claimed = np.full(m, np.nan)
     if md.criterion == "worst":
-        claimed = np.full(m, np.nan)
-        claimed[design.worst_index] = 1.0 - md.target_reliability
-        return claimed, f"the design point only (grid pose {design.worst_index})"
-    return 1.0 - np.asarray(md.reliability, dtype=float), f"the mean over {m} grid poses"
+        claimed[design.worst_index] = failure
+        return claimed, float("nan"), f"the design point only (grid pose {design.worst_index})"
+    return claimed, failure, f"the mean over {m} grid poses"
 
 
 def machine_sigma(design: DesignResult, settings: CalibrationSettings) -> np.ndarray:
@@ -258,7 +265,7 @@ def check_contract(
         )
     maps = ctx.cases[0].maps if ctx.cases else mode_maps(grid, design.compensation)
     predicted, noise_fail = _linear_failures(maps, design.uncompensatable, sigma, design.target_m)
-    claimed, scope = claim_of(design)
+    claimed, claimed_grid, scope = claim_of(design)
     ek, lk = exact[kept], linear[kept]
     poses = tuple(
         _pose_check(
@@ -270,7 +277,6 @@ def check_contract(
         poses = tuple(_blocked(p, blocked) for p in poses)
     failed = np.where(np.isfinite(ek), ek > design.target_m, True)
     aggregate = machine_bootstrap(failed, np.ones_like(failed, dtype=bool))
-    with_claim = np.isfinite(claimed)
     return ContractCheck(
         mechanism=mech.name,
         mode=design.compensation,
@@ -284,7 +290,7 @@ def check_contract(
         dlambda_m=exact,
         converged=kept,
         aggregate=aggregate,
-        aggregate_claimed=float(np.mean(claimed[with_claim])) if with_claim.any() else float("nan"),
+        aggregate_claimed=claimed_grid,
         wall_time_s=wall,
     )
 
