@@ -142,6 +142,13 @@ def seed_mech() -> Mechanism:
     return load_mechanism(SEED)
 
 
+def contract_without_machines(tmp: Path) -> Any:
+    from pkmtol.design.contract import check_contract
+
+    small = DesignOptions(samples=300, verification_poses=30, exact_samples=0, claim_poses=10)
+    return check_contract(allocate(seed_mech(), small), machines=0)
+
+
 def locked_out(tmp: Path) -> Any:
     out = tmp / "busy"
     with RunFolder(out):
@@ -389,6 +396,7 @@ CASES: list[Case] = [
     Case("Python API", "`load_closed_loop` given a number as the sidecar", lambda t: load_closed_loop(REPO / "tests/data/r2rps_ups_closed/robot.urdf", 5, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("sidecar", "file path"), {"argument": "sidecar"}),  # type: ignore[arg-type]
     Case("Python API", "`load_mjcf` given `None` as the file", lambda t: load_mjcf(None, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("path", "file path"), {"argument": "path"}),  # type: ignore[arg-type]
     Case("Python API", "`write_outputs` given something else than a result", lambda t: write_outputs("result", t / "o"), IA, ("result", "DesignResult")),  # type: ignore[arg-type]
+    Case("Python API", "`check_contract(design, machines=0)`", contract_without_machines, IA, ("machines = 0", "integer ≥ 1"), {"argument": "machines"}),
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),
     Case("Command line", "`--samples 0`", cli("allocate", "{robot}", "--samples", "0"), IA, ("--samples 0", "≥ 2"), {"argument": "--samples"}),
