@@ -36,6 +36,7 @@ from pkmtol import (
     write_outputs,
 )
 from pkmtol import exceptions as E
+from pkmtol.calibration.fit_check import PoorFitError
 from pkmtol.cli import run as cli_run
 from pkmtol.design.budget import check_memory
 from pkmtol.kinematics import acceleration
@@ -418,6 +419,39 @@ CASES: list[Case] = [
     Case("Hybrid machines", "`--lock-wrist` that leaves a wrist joint free", cli("check", str(HYBRID), "--lock-wrist", "wrist_a=45deg"), IA, ("--lock-wrist wrist_a=45deg", "missing wrist_c"), {"argument": "--lock-wrist"}),
     Case("Hybrid machines", "`pkmtol calibrate` on a hybrid machine", cli("calibrate", str(HYBRID)), E.InvalidRequestError, ("r2rps_ups_wrist", "is a hybrid machine", "not available")),
     Case("Hybrid machines", "a `[tool]` table with `task.kind = \"position\"`", toml("[design]", '[tool]\nurdf = "limb4.urdf"\nnose_frame = "platform"\n\n[design]'), MF, ("task.kind", "a [tool] table needs task.kind = 'tool'")),
+]  # fmt: skip
+
+
+# ---- issue 25: calibrate's data path, tracebacks, outputs, silent acceptance
+
+
+def measured_at_grid(tmp: Path, edit: Callable[[np.ndarray], np.ndarray]) -> Path:
+    """A measurement file of the seed robot at 30 grid poses, its exact P positions changed by ``edit``."""
+    from pkmtol.calibration.measurement_files import measurements_csv
+
+    mech = load_mechanism(SEED)
+    chain = ClosedChain(mech)
+    poses = [chain.inverse(p) for p in mech.task_space.grid()[::4][:30]]
+    commands = np.array([pose.q_all[chain.actuated_idx] for pose in poses])
+    points = np.array([pose.p_m for pose in poses])[:, None, :]
+    path = tmp / "measured.csv"
+    path.write_text(measurements_csv(mech, commands, edit(points)))
+    return path
+
+
+def calibrate_zeros(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: 0.0 * y)
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def calibrate_offset(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: y + np.array([0.05, 0.0, 0.0]))
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+CASES += [
+    Case("Calibration data", "`calibrate --measurements` with every coordinate 0", calibrate_zeros, PoorFitError, ("measured.csv", "every measured coordinate is 0", "--accept-poor-fit"), {"cause": "zeros"}),
+    Case("Calibration data", "`calibrate --measurements` read 50 mm off the base frame", calibrate_offset, PoorFitError, ("measured.csv", "rigid offset of the tracker's frame", "--tracker-frame identify"), {"cause": "frame offset"}),
 ]  # fmt: skip
 
 

@@ -8,12 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pkmtol.calibration.fit_check import PoorFitError
 from pkmtol.calibration.identification import model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.measurement_files import measurements_csv, read_measurements
 from pkmtol.calibration.plan import candidate_pool, make_plan
 from pkmtol.calibration.settings import CalibrationSettings
-from pkmtol.cli import main
+from pkmtol.cli import main, run
 from pkmtol.error_model.parameters import parameter_set
 from pkmtol.error_model.sweep import sweep
 from pkmtol.exceptions import MeasurementFileError
@@ -225,3 +226,69 @@ def test_study_is_the_same_serially_and_on_two_processes(tmp_path):
     for a, b in ((serial.before, parallel.before), (serial.cases[0].exact, parallel.cases[0].exact)):
         np.testing.assert_array_equal(a.dlambda_m, b.dlambda_m)
     assert serial.cases[0].exact.mean_m > 0
+
+
+# --- impossible data: no calibrated machine ---------------------------------------------------
+
+IMPOSSIBLE = {
+    # the measured points, from the session's: the cause the refusal must name, and a needle
+    "all coordinates 0": (lambda y: 0.0 * y, "zeros", "every measured coordinate is 0"),
+    "metres under [mm] headers": (lambda y: 1e-3 * y, "units", "metres written under [mm]"),
+    "one point for every pose": (lambda y: 0.0 * y + y[0], "repeated point", "the same point"),
+    "a 50 mm offset": (lambda y: y + np.array([0.05, 0.0, 0.0]), "frame offset", "--tracker-frame identify"),
+    "two outlier poses": (
+        lambda y: y + np.where(np.isin(np.arange(len(y)), [4, 17])[:, None, None], 3e-3, 0.0),
+        "outliers",
+        "'4', line 6",
+    ),
+}
+
+
+def _measured(session) -> tuple[np.ndarray, np.ndarray]:
+    mech, _, plan, _, path = session
+    m = read_measurements(path, mech, 1)
+    return m.commands, m.measured_m
+
+
+@pytest.mark.parametrize("case", sorted(IMPOSSIBLE))
+def test_impossible_data_is_refused_and_writes_nothing(session, tmp_path, capsys, case):
+    mech = session[0]
+    commands, y = _measured(session)
+    edit, cause, needle = IMPOSSIBLE[case]
+    bad = tmp_path / "bad.csv"
+    bad.write_text(measurements_csv(mech, commands, edit(y)))
+    out = tmp_path / "out"
+    argv = ["calibrate", str(SEED), "--set", "urdf", "--measurements", str(bad), "--out", str(out)]
+    with pytest.raises(PoorFitError) as info:
+        run(argv)
+    assert info.value.cause == cause, str(info.value)
+    assert needle in str(info.value)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Nothing was written" in err and "--accept-poor-fit" in err
+    assert not out.exists() or not any(p.is_file() for p in out.rglob("*"))
+
+
+def test_accept_poor_fit_writes_and_says_it_was_overridden(session, tmp_path, capsys):
+    mech = session[0]
+    commands, y = _measured(session)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(measurements_csv(mech, commands, y + np.array([0.05, 0.0, 0.0])))
+    out = tmp_path / "out"
+    argv = ["calibrate", str(SEED), "--set", "urdf", "--measurements", str(bad), "--out", str(out)]
+    assert main([*argv, "--accept-poor-fit"]) == 0
+    captured = capsys.readouterr()
+    assert "poor fit accepted by --accept-poor-fit" in captured.err
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["fit_check"]["poor"] and doc["fit_check"]["overridden_by_accept_poor_fit"]
+    assert doc["fit_check"]["cause"] == "frame offset"
+    assert "--accept-poor-fit overrode the check" in (out / "identified.md").read_text()
+    assert (out / "calibrated" / "mechanism.toml").is_file()
+
+
+def test_good_data_passes_the_fit_check(session, tmp_path):
+    out = tmp_path / "out"
+    argv = ["calibrate", str(SEED), "--set", "urdf", "--measurements", str(session[4]), "--out", str(out)]
+    assert main(argv) == 0
+    check = json.loads((out / "identified.json").read_text())["fit_check"]
+    assert not check["poor"] and check["rms_after_m"] < check["limit_m"] == pytest.approx(5e-5)

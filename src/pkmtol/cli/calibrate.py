@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.fit_check import FitVerdict, PoorFitError, fit_verdict
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
@@ -81,6 +82,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="allocation.json of a `pkmtol allocate` run: the σ of the uncompensatable errors "
         "(default: a quick FOSM allocation at the design β)",
+    )
+    p.add_argument(
+        "--accept-poor-fit",
+        action="store_true",
+        help="--measurements: write the calibrated machine even when the fit did not converge or left "
+        "residuals above 5× the noise (the report says it was overridden)",
     )
     p.add_argument("--random-sets", type=int, default=10, help="random plans to compare with (default 10)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -164,10 +171,18 @@ def _instrument_data(
         tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
         sigma = design_sigma(pset, classes, settings, tol)
     cal = calibrate_instrument_data(mech, pset, classes, settings, meas, args.measurements, sigma)
+    r = cal.result
+    verdict = fit_verdict(
+        r.converged, r.iterations, r.rms_after_m, settings.noise_m, r.residuals_m, labels=meas.labels
+    )
+    note = _judged(verdict, args)
     files = [
-        (out / "identified.json", dumps(instrument_json(cal, pset.names)).encode()),
+        (out / "identified.json", _json_with(instrument_json(cal, pset.names), verdict)),
         (out / "identified.csv", instrument_identified_csv(cal).encode()),
-        (out / "identified.md", ("# Identified parameters\n\n" + instrument_text(cal, True)).encode()),
+        (
+            out / "identified.md",
+            ("# Identified parameters\n\n" + note + instrument_text(cal, True)).encode(),
+        ),
         (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
     ]
     try:
@@ -176,8 +191,31 @@ def _instrument_data(
         files += write_calibrated_folder(out / "calibrated", urdfs, toml)
     except Exception as err:  # noqa: BLE001 - reported, the identification stands
         print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
-    print(instrument_text(cal), end="")
+    print(note + instrument_text(cal), end="")
     return files
+
+
+def _judged(verdict: FitVerdict, args: argparse.Namespace) -> str:
+    """Refuse a poor fit (:class:`PoorFitError`) unless ``--accept-poor-fit``; the report's note then."""
+    if not verdict.poor:
+        return ""
+    if not args.accept_poor_fit:
+        raise PoorFitError(args.measurements, verdict.cause, verdict.problem)
+    print(f"pkmtol: warning: poor fit accepted by --accept-poor-fit: {verdict.problem}", file=sys.stderr)
+    return f"POOR FIT, written because --accept-poor-fit overrode the check: {verdict.problem}\n\n"
+
+
+def _json_with(doc: dict, verdict: FitVerdict) -> bytes:
+    """identified.json: the identification with its fit check (and whether it was overridden)."""
+    doc["fit_check"] = {
+        "poor": verdict.poor,
+        "overridden_by_accept_poor_fit": verdict.poor,
+        "cause": verdict.cause,
+        "problem": verdict.problem,
+        "rms_after_m": verdict.rms_after_m,
+        "limit_m": verdict.limit_m,
+    }
+    return dumps(doc).encode()
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -217,11 +255,29 @@ def _run(args: argparse.Namespace) -> int:
             tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
             sigma = design_sigma(pset, classes, settings, tol)
         cal = calibrate_measurements(mech, pset, classes, settings, meas, args.measurements, sigma)
-        text = identified_text(cal)
+        r = cal.result
+        verdict = fit_verdict(
+            r.converged,
+            r.iterations,
+            r.rms_after_m,
+            cal.ident.noise_m,
+            r.residuals_m,
+            meas.measured_m,
+            r.residuals_before_m,
+            cal.H[:, cal.ident.columns],
+            cal.ident.scale,
+            meas.labels,
+            meas.lines,
+        )
+        note = _judged(verdict, args)
+        text = note + identified_text(cal)
         files += [
-            (out / "identified.json", dumps(identified_json(cal, pset.names)).encode()),
+            (out / "identified.json", _json_with(identified_json(cal, pset.names), verdict)),
             (out / "identified.csv", identified_csv(cal).encode()),
-            (out / "identified.md", ("# Identified parameters\n\n" + identified_text(cal, True)).encode()),
+            (
+                out / "identified.md",
+                ("# Identified parameters\n\n" + note + identified_text(cal, True)).encode(),
+            ),
             (out / "residuals.csv", residuals_csv(cal).encode()),
         ]
         try:
