@@ -292,3 +292,42 @@ def test_good_data_passes_the_fit_check(session, tmp_path):
     assert main(argv) == 0
     check = json.loads((out / "identified.json").read_text())["fit_check"]
     assert not check["poor"] and check["rms_after_m"] < check["limit_m"] == pytest.approx(5e-5)
+
+
+# --- the reader: sizes, folders, grouping in linear time ------------------------------------------
+
+
+def test_a_huge_coordinate_is_refused_where_it_is_read(session, tmp_path, capsys):
+    bad = _rewrite(session[4], tmp_path, lambda ls: [ls[0], ls[1].rsplit(",", 1)[0] + ",1e300"] + ls[2:])
+    out = tmp_path / "out"
+    code = main(["calibrate", str(SEED), "--set", "urdf", "--measurements", str(bad), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "line 2 column 'z'" in err and "not a measurement" in err, err
+    assert "Traceback" not in err and not any(p.is_file() for p in out.rglob("*"))
+
+
+def test_measurements_naming_a_folder_is_refused(tmp_path, capsys):
+    code = main(["calibrate", str(SEED), "--measurements", str(tmp_path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "is a folder; give the measurement CSV file" in err, err
+
+
+def test_grouping_into_poses_agrees_with_the_row_by_row_comparison():
+    from pkmtol.calibration.measurement_files import SAME_POSE, _group, _group_rows
+
+    rng = np.random.default_rng(5)
+    base = rng.uniform(0.5, 1.5, size=(200, 3))
+    edge = 0.5e-6  # a bin edge of the binned grouping (1000 × SAME_POSE wide)
+    base[:20, 0] = edge + rng.uniform(-0.3, 0.3, size=20) * SAME_POSE  # rows of a pose in two bins
+    rows = np.repeat(base, 3, axis=0) + rng.uniform(-0.2, 0.2, size=(600, 3)) * SAME_POSE
+    rows = rows[rng.permutation(600)]
+    got = _group(rows)
+    np.testing.assert_array_equal(got, _group_rows(rows))
+    # every pose once: a pose's rows agree within SAME_POSE, different poses do not
+    assert got.max() + 1 == 200  # the edge poses' rows found each other across the edge
+    assert len({tuple(np.flatnonzero(got == got[k])) for k in range(600)}) == 200
+    first_rows = [rows[got == k][0] for k in range(got.max() + 1)]
+    assert [int(np.flatnonzero(got == k)[0]) for k in range(got.max() + 1)] == sorted(
+        int(np.flatnonzero(got == k)[0]) for k in range(got.max() + 1)
+    )
+    assert all(np.abs(rows[got == k] - first_rows[k]).max() < SAME_POSE for k in range(len(first_rows)))
