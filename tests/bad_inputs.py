@@ -449,9 +449,32 @@ def calibrate_offset(tmp: Path) -> Any:
     return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
 
 
+def calibrate_huge_coordinate(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: y + np.array([0.0, 0.0, 1e300]))
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def other_robots_allocation(tmp: Path) -> Any:
+    path = tmp / "allocation.json"
+    path.write_text(
+        '{"mechanism": "tricept", "parameter_set": "dh", "beta": [2.0], "design_beta": 2.0, "parameters": []}'
+    )
+    return cli_run(["calibrate", str(robot(tmp)), "--tolerances", str(path), "--out", str(tmp / "cal")])
+
+
 CASES += [
     Case("Calibration data", "`calibrate --measurements` with every coordinate 0", calibrate_zeros, PoorFitError, ("measured.csv", "every measured coordinate is 0", "--accept-poor-fit"), {"cause": "zeros"}),
     Case("Calibration data", "`calibrate --measurements` read 50 mm off the base frame", calibrate_offset, PoorFitError, ("measured.csv", "rigid offset of the tracker's frame", "--tracker-frame identify"), {"cause": "frame offset"}),
+    Case("Calibration data", "`calibrate --measurements` with a coordinate of 1e300", calibrate_huge_coordinate, E.MeasurementFileError, ("measured.csv", "column 'z'", "not a measurement"), {"column": "z"}),
+    Case("Calibration data", "`calibrate --measurements` naming a folder", cli("calibrate", "{robot}", "--measurements", "{tmp}", "--out", "{tmp}/cal"), E.MeasurementFileError, ("is a folder",)),
+    Case("Calibration data", "`calibrate --tolerances` with another robot's allocation.json", other_robots_allocation, E.InvalidRequestError, ("'tricept', not of 'r2rps_ups'",)),
+    Case("Calibration data", "`calibrate --tolerances` with `--measurements` but no `--prior`", cli("calibrate", "{robot}", "--measurements", "{tmp}/m.csv", "--tolerances", "{tmp}/a.json", "--out", "{tmp}/cal"), IA, ("--tolerances", "give --prior"), {"argument": "--tolerances"}),
+    Case("Calibration options", "`--noise 1e300mm`", cli("calibrate", "{robot}", "--noise", "1e300mm", "--out", "{tmp}/cal"), IA, ("--noise 1e300mm", "between 0 and 1 m"), {"argument": "--noise"}),
+    Case("Calibration options", "`calibrate --poses 0`", cli("calibrate", "{robot}", "--poses", "0", "--out", "{tmp}/cal"), IA, ("--poses 0", "≥ 1"), {"argument": "--poses"}),
+    Case("Calibration options", "`calibrate --random-sets -1`", cli("calibrate", "{robot}", "--random-sets", "-1", "--out", "{tmp}/cal"), IA, ("--random-sets -1",), {"argument": "--random-sets"}),
+    Case("Calibration options", "a huge `calibrate --holdout`", cli("calibrate", "{robot}", "--holdout", "10000000000", "--out", "{tmp}/cal"), E.ResourceLimitError, ("--holdout 10000000000", "needs about", "at most about"), {"argument": "--holdout"}),
+    Case("Calibration options", "`allocate --poses 5` without `--compensation calibrated`", cli("allocate", "{robot}", "--poses", "5", "--out", "{tmp}/a"), IA, ("--poses 5", "only with --compensation calibrated"), {"argument": "--poses"}),
+    Case("Calibration options", "`allocate --drawing-k 1e308`", cli("allocate", "{robot}", "--drawing-k", "1e308", "--out", "{tmp}/a"), IA, ("--drawing-k 1e+308", "(0, 10]"), {"argument": "--drawing-k"}),
 ]  # fmt: skip
 
 
@@ -459,6 +482,7 @@ def message(err: BaseException, tmp: Path) -> str:
     """The message with the case's folder shown as ``<tmp>`` and machine-dependent numbers normalised."""
     text = str(err).replace(str(tmp), "<tmp>")
     text = re.sub(r"more than the [\d.,]+ [GMT]B available", "more than the N GB available", text)
+    text = re.sub(r"at most about [\d,]+ for --", "at most about M for --", text)
     return re.sub(r"at most about [\d,]+ samples", "at most about M samples", text)
 
 

@@ -331,3 +331,90 @@ def test_grouping_into_poses_agrees_with_the_row_by_row_comparison():
         int(np.flatnonzero(got == k)[0]) for k in range(got.max() + 1)
     )
     assert all(np.abs(rows[got == k] - first_rows[k]).max() < SAME_POSE for k in range(len(first_rows)))
+
+
+# --- options and files that were read silently or crashed ---------------------------------------
+
+
+def _allocation(tmp_path: Path, **changes) -> Path:
+    """A minimal allocation.json of the seed robot (dh set): one uncompensatable tolerance."""
+    mech = load_mechanism(SEED)
+    names = parameter_set(mech, "dh").names
+    doc = {
+        "mechanism": "r2rps_ups",
+        "parameter_set": "dh",
+        "beta": [1.0, 2.0],
+        "design_beta": 2.0,
+        "parameters": [
+            {"name": names[-1], "tolerance": [2e-5, 1e-5], "class_in_mode": "uncompensatable"},
+            {"name": names[0], "tolerance": [None, None], "class_in_mode": "compensatable"},
+        ],
+    }
+    doc.update(changes)
+    path = tmp_path / "allocation.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_tolerances_of_this_robot_are_read_at_the_design_beta(tmp_path):
+    from pkmtol.calibration.tolerance_file import read_tolerances
+
+    mech = load_mechanism(SEED)
+    pset = parameter_set(mech, "dh")
+    tol, source = read_tolerances(_allocation(tmp_path), "r2rps_ups", pset, CalibrationSettings())
+    assert tol[-1] == 1e-5 and np.isnan(tol[0]) and np.isnan(tol[1:-1]).all()
+    assert "FOSM design-β tolerances" in source
+
+
+@pytest.mark.parametrize(
+    ("changes", "needle"),
+    [
+        ({"mechanism": "tricept"}, "an allocation of 'tricept', not of 'r2rps_ups'"),
+        ({"parameters": [{"name": "nothing.here", "tolerance": [1e-5, 1e-5]}]}, "none of its 1 parameter"),
+        ({"parameters": [{"name": "x", "tolerance": "tight"}]}, "parameters[0].tolerance"),
+        ({"parameters": [{"name": "x", "tolerance": [1e-5]}]}, "expected a list of 2 numbers"),
+        ({"beta": "2"}, "key 'beta'"),
+        ({"design_beta": None}, "key 'design_beta'"),
+        ({"parameters": [5]}, "parameters[0]"),
+        ({"method_design": {"method": "cost", "parameters": ["a"], "tolerance": ["x"]}}, "method_design"),
+    ],
+)
+def test_a_wrong_tolerances_file_is_refused_naming_what_is_wrong(tmp_path, capsys, changes, needle):
+    path = _allocation(tmp_path, **changes)
+    code = main(
+        ["calibrate", str(SEED), "--tolerances", str(path), "--random-sets", "0", "--out", str(tmp_path)]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and needle in err and "Traceback" not in err, err
+
+
+def test_tolerances_with_measurements_but_no_prior_is_refused(session, tmp_path, capsys):
+    path = _allocation(tmp_path)
+    argv = ["calibrate", str(SEED), "--measurements", str(session[4]), "--tolerances", str(path)]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "--tolerances" in err and "give --prior" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["calibrate", str(SEED), "--noise", "1e300mm"], "--noise 1e300mm: an instrument's noise σ"),
+        (["errors", str(SEED), "--compensation", "calibrated", "--noise", "1e300mm"], "--noise 1e300mm"),
+        (["allocate", str(SEED), "--compensation", "calibrated", "--noise", "1e300mm"], "--noise 1e300mm"),
+        (["allocate", str(SEED), "--drawing-k", "1e308"], "--drawing-k 1e+308"),
+        (["calibrate", str(SEED), "--poses", "0"], "--poses 0: give an integer ≥ 1"),
+        (["calibrate", str(SEED), "--rank-tolerance", "2"], "--rank-tolerance 2.0"),
+        (["calibrate", str(SEED), "--random-sets", "-1"], "--random-sets -1"),
+        (["calibrate", str(SEED), "--holdout", "10000000000"], "--holdout 10000000000: needs about"),
+        (["calibrate", str(SEED), "--simulate", "--machines", "10**11"], "--machines"),
+        (["allocate", str(SEED), "--poses", "5"], "--poses 5: a calibration-plan option"),
+        (["errors", str(SEED), "--noise", "1mm"], "--noise 1mm: a calibration-plan option"),
+    ],
+)
+def test_a_bad_option_is_named_as_the_option(tmp_path, capsys, argv, needle):
+    argv = [a.replace("10**11", "100000000000") for a in argv]
+    assert main(argv + ([] if argv[0] == "errors" else ["--out", str(tmp_path / "out")])) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "key 'calibration'" not in err and "Traceback" not in err, err
+    assert not any(p.is_file() for p in (tmp_path / "out").rglob("*"))

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.cli.calibration_options import add_plan_options, calibrated_settings
 from pkmtol.cli.common import (
     OPTION_OF_FIELD,
     add_executor_options,
@@ -218,7 +218,7 @@ def _run(args: argparse.Namespace) -> int:
             progress=show_progress(args.no_progress),
             executor=executor_from(args),
             compensation=args.compensation,
-            calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
+            calibration=calibrated_settings(mech, args, args.seed),
             orientation_target_rad=orientation,
             tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
             drawing=drawing_option(mech.extra.get("drawing"), args.drawing, args.drawing_k),
@@ -277,6 +277,8 @@ def drawing_option(
     """
     if convention is None and k is None:
         return None
+    if k is not None and not 0 < k <= 10:  # issue 25: 1e308 overflowed the drawing's ±t
+        raise InvalidArgumentError("--drawing-k", k, "the k of ±t = k·σ must be in (0, 10], e.g. 3")
     base = table if table is not None else DrawingSettings()
     if k is not None and (convention or base.convention) == "uniform":
         raise InvalidArgumentError(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -16,14 +15,17 @@ from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.calibration.study_limits import check_calibration_request
+from pkmtol.calibration.tolerance_file import read_tolerances
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
+from pkmtol.design.budget import available_memory
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.task import hybrid_calibration_refusal
-from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
+from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
@@ -106,36 +108,7 @@ def _tolerances(
     A calibrated-mode design's identified parameters are drawn at the manufacturing σ of ``settings``.
     """
     if path is not None:
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-            col = int(np.argmin(np.abs(np.asarray(doc["beta"], dtype=float) - float(doc["design_beta"]))))
-            by_name = {p["name"]: p["tolerance"] for p in doc["parameters"]}
-            kind = doc["parameter_set"]
-        except (OSError, ValueError, KeyError, TypeError) as err:
-            raise MechanismFormatError(
-                path, "-", f"not an allocation.json of `pkmtol allocate` ({err})"
-            ) from err
-        if kind != pset.kind:
-            raise InvalidRequestError(
-                f"{path} allocates the '{kind}' parameter set but this calibration uses '{pset.kind}'; "
-                f"give --set {kind}"
-            )
-        tol = np.full(len(pset), np.nan)
-        design = doc.get("method_design") or {}
-        chosen = dict(zip(design.get("parameters", []), design.get("tolerance", []), strict=False))
-        manufacturing = settings.manufacturing_sigma(pset)
-        classes_in_mode = {p["name"]: p.get("class_in_mode") for p in doc["parameters"]}
-        for i, name in enumerate(pset.names):
-            t = chosen.get(name, None) if chosen else None
-            if t is None:
-                row = by_name.get(name)
-                t = None if row is None else row[col]
-            if t is not None:
-                tol[i] = float(t)
-            elif classes_in_mode.get(name) == "identified":
-                tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
-        what = f"'{design['method']}' design" if design else "FOSM design-β tolerances"
-        return tol, f"{what} of {path}"
+        return read_tolerances(path, mech.name, pset, settings)
     res = allocate(
         mech,
         DesignOptions(
@@ -234,8 +207,25 @@ def _run(args: argparse.Namespace) -> int:
     if args.plan_per_machine and not args.simulate:
         raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
+    if args.tolerances is not None and args.measurements is not None and not settings.prior:
+        raise InvalidArgumentError(
+            "--tolerances",
+            str(args.tolerances),
+            "with --measurements only a --prior identification reads it (the σ of the prior); give "
+            "--prior (or [calibration] prior = true), or leave --tolerances out",
+        )
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = parameter_set(mech, args.pset or default_set(mech))
+    check_calibration_request(
+        len(pset),
+        3 * settings.targets(mech).shape[0],
+        args.machines,
+        args.holdout,
+        settings.candidates,
+        args.random_sets,
+        args.simulate,
+        available_memory(),
+    )
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
     check_output_folder(out)
     if args.plan is not None:
