@@ -418,3 +418,34 @@ def test_a_bad_option_is_named_as_the_option(tmp_path, capsys, argv, needle):
     err = capsys.readouterr().err
     assert needle in err and "key 'calibration'" not in err and "Traceback" not in err, err
     assert not any(p.is_file() for p in (tmp_path / "out").rglob("*"))
+
+
+def test_a_measurement_error_without_a_line_has_no_empty_place():
+    err = MeasurementFileError("m.csv", 0, "", "file not found")
+    assert str(err) == "m.csv: file not found"
+    assert str(MeasurementFileError("m.csv", 3, "x", "bad")) == "m.csv: line 3 column 'x': bad"
+
+
+def test_a_yaml_alias_bomb_and_a_deep_nesting_give_short_named_errors(tmp_path):
+    import shutil
+    import time
+
+    from pkmtol.exceptions import MechanismFormatError
+
+    for kind in ("bomb", "deep"):
+        folder = tmp_path / kind
+        shutil.copytree(ROOT / "tests" / "data" / "r2rps_ups_closed", folder)
+        side = folder / "robot.yaml"
+        text = "\n".join(line for line in side.read_text().splitlines() if not line.startswith("type:"))
+        if kind == "bomb":
+            text += '\na0: &a0 ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n'
+            text += "".join(f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]\n" for i in range(1, 9))
+            text += "type: *a8\n"
+        else:
+            text += "\ntype: " + "[" * 10_000 + "]" * 10_000 + "\n"
+        side.write_text(text)
+        t0 = time.perf_counter()
+        with pytest.raises(MechanismFormatError) as info:
+            load_mechanism(folder)
+        assert time.perf_counter() - t0 < 30 and len(str(info.value)) < 400, str(info.value)[:400]
+        assert "robot.yaml" in str(info.value)
