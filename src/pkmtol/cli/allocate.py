@@ -23,7 +23,7 @@ from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequest
 from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.outputs import render_tables
-from pkmtol.present.run_folder import RunFolder
+from pkmtol.present.run_folder import MANIFEST, RUN_FILES, RunFolder, check_distinct
 from pkmtol.present.tables import summary_text
 from pkmtol.present.viewer.options import SceneOptions
 from pkmtol.units import parse_angle
@@ -228,6 +228,8 @@ def _run(args: argparse.Namespace) -> int:
     for name, path in (("--html", args.html), ("--report", args.report)):
         if path is not None and not (path.parent if str(path.parent) else Path(".")).is_dir():
             raise OutputError(path, f"folder {path.parent} does not exist; create it first ({name})")
+    given = [p for p in (args.html, args.report) if p is not None]
+    check_distinct([out / name for name in (*RUN_FILES, MANIFEST)] + given)  # before any work
     options = scene_options(args.ellipsoids)
     with RunFolder(out) as run:
         result = allocate(mech, opts)

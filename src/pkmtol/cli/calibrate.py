@@ -26,7 +26,7 @@ from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.task import hybrid_calibration_refusal
 from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
-from pkmtol.files import write_atomic
+from pkmtol.executor import Executor
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.present.calibration_tables import (
@@ -46,6 +46,7 @@ from pkmtol.present.instrument_tables import (
     instrument_residuals_csv,
     instrument_text,
 )
+from pkmtol.present.run_folder import RunFolder, check_distinct
 from pkmtol.present.tables import check_output_folder
 
 
@@ -227,9 +228,43 @@ def _run(args: argparse.Namespace) -> int:
         available_memory(),
     )
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
-    check_output_folder(out)
     if args.plan is not None:
         check_output_folder(args.plan.parent if str(args.plan.parent) else Path("."))
+        check_distinct([out / name for name in RUN_NAMES] + [args.plan])  # --plan at a run file
+    with RunFolder(out) as run:  # one run at a time, written all or nothing (issue 25)
+        files = _outputs(args, mech, settings, executor, pset, out)
+        inside = {p.name: data for p, data in files if p.parent == out}
+        outside = {p: data for p, data in files if p.parent != out}
+        for path in outside:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        written = run.write(inside, outside)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+#: The files a calibrate run may write into its folder (``--plan`` must not be one of them).
+RUN_NAMES = (
+    "identified.json",
+    "identified.csv",
+    "identified.md",
+    "residuals.csv",
+    "calibration_plan.json",
+    "calibration_plan.md",
+    "study.json",
+    "study.md",
+)
+
+
+def _outputs(
+    args: argparse.Namespace,
+    mech: Mechanism,
+    settings: CalibrationSettings,
+    executor: Executor,
+    pset: ParameterSet,
+    out: Path,
+) -> list[tuple[Path, bytes]]:
+    """Compute what ``args`` asks for and print it; the files of the run, rendered in memory."""
     classes = grid_classes(mech, pset)
     files: list[tuple[Path, bytes]] = []
     figures: dict[str, object] = {}
@@ -345,10 +380,6 @@ def _run(args: argparse.Namespace) -> int:
             except FiguresError as err:
                 print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
         print(text, end="")
-    for path, data in files:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(path, data)
-        print(f"wrote {path}")
     if not files:  # pragma: no cover - every mode writes its tables
         raise OutputError(out, "nothing to write")
-    return 0
+    return files
