@@ -39,7 +39,19 @@ LONG = {
         "3000",
         "--no-progress",
     ],
-    "calibrate": ["calibrate", str(SEED), "--simulate", "--machines", "400", "--random-sets", "0"],
+    "calibrate": [
+        "calibrate",
+        str(SEED),
+        "--simulate",
+        "--machines",
+        "2000",
+        "--random-sets",
+        "0",
+        "--candidates",
+        "20",
+        "--holdout",
+        "20",
+    ],
     "sweep": ["sweep", str(SEED), "--vary", "reference_point.position_m[2]=0.2:0.4:40", "--no-progress"],
 }
 
@@ -89,7 +101,7 @@ def _wait_until_computing(proc: subprocess.Popen, workers: int, timeout: float =
         if workers > 1 and len(kids) >= workers:
             time.sleep(0.5)
             return _children(proc.pid)
-        if workers == 1 and time.monotonic() - t0 > 6.0:
+        if workers == 1 and time.monotonic() - t0 > 4.0:
             return kids
         time.sleep(0.2)
     raise AssertionError("the run did not start its workers in time")
