@@ -370,7 +370,7 @@ def test_tolerances_of_this_robot_are_read_at_the_design_beta(tmp_path):
     ("changes", "needle"),
     [
         ({"mechanism": "tricept"}, "an allocation of 'tricept', not of 'r2rps_ups'"),
-        ({"parameters": [{"name": "nothing.here", "tolerance": [1e-5, 1e-5]}]}, "none of its 1 parameter"),
+        ({"parameters": [{"name": "nothing.here", "tolerance": [1e-5, 1e-5]}]}, "names 'nothing.here'"),
         ({"parameters": [{"name": "x", "tolerance": "tight"}]}, "parameters[0].tolerance"),
         ({"parameters": [{"name": "x", "tolerance": [1e-5]}]}, "expected a list of 2 numbers"),
         ({"beta": "2"}, "key 'beta'"),

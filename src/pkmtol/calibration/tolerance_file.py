@@ -1,7 +1,7 @@
 """``calibrate --tolerances``: the design-β σ of an ``allocation.json`` of ``pkmtol allocate``, checked.
 
 The file must be an allocation of the same mechanism and parameter set, and its parameters must be
-this mechanism's: a file of another robot, or one whose names match none of this robot's, is refused
+this mechanism's: a file of another robot, or with a name that is not one of this robot's, is refused
 (it would leave every uncompensatable error at 0 and a calibration study that flatters the design).
 Every field read is type-checked, so a malformed file is a named error, never a traceback.
 """
@@ -77,11 +77,18 @@ def read_tolerances(
         by_name[row["name"]] = t
         classes_in_mode[row["name"]] = row.get("class_in_mode")
     known = set(pset.names)
-    if not known & set(by_name):
-        shown = ", ".join(sorted(by_name)[:3]) or "none"
+    unknown = [n for n in by_name if n not in known]
+    if unknown or not by_name:
+        shown = ", ".join(f"'{n[:40]}'" for n in unknown[:3]) + (" …" if len(unknown) > 3 else "")
+        what = (
+            f"none of its {len(by_name)} parameter names"
+            if len(unknown) == len(by_name)
+            else "the parameter(s)"
+        )
         raise InvalidRequestError(
-            f"--tolerances {path}: none of its {len(by_name)} parameter names ({shown}, …) is a parameter "
-            f"of {mechanism_name}'s {pset.kind} set; give the allocation.json of this robot"
+            f"--tolerances {path}: {what} {shown or '(none)'} "
+            f"{'is' if len(unknown) == 1 else 'are'} not of {mechanism_name}'s {pset.kind} set; give the "
+            "allocation.json of `pkmtol allocate` on this robot"
         )
     chosen = _chosen(path, doc.get("method_design"))
     tol = np.full(len(pset), np.nan)
