@@ -234,3 +234,48 @@ def test_a_special_file_is_refused_by_the_writer_itself(tmp_path):
         write_atomic(fifo, b"x")
     with pytest.raises(OutputError, match="a folder"):
         write_atomic(tmp_path, b"x")
+
+
+# --- a Dask address that accepts but does not answer ----------------------------------------------
+
+
+def _server(greeting: bytes | None):
+    import socket
+    import threading
+
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen(4)
+    held = []
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = sock.accept()
+            except OSError:
+                return
+            held.append(conn)
+            if greeting is not None:
+                conn.sendall(greeting)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return sock, f"tcp://127.0.0.1:{sock.getsockname()[1]}"
+
+
+@pytest.mark.parametrize(
+    ("greeting", "says"),
+    [(None, "sent no Dask handshake within 1 s"), (b"SSH-2.0-OpenSSH_9.0\r\n", "is not a Dask scheduler")],
+)
+def test_a_silent_or_foreign_server_is_not_taken_for_a_scheduler(monkeypatch, greeting, says):
+    from pkmtol import executor
+    from pkmtol.exceptions import ExecutorError
+
+    monkeypatch.setattr(executor, "DASK_TIMEOUT_S", 1.0)
+    sock, address = _server(greeting)
+    t0 = time.monotonic()
+    try:
+        with pytest.raises(ExecutorError, match=says):
+            executor._probe(address)
+    finally:
+        sock.close()
+    assert time.monotonic() - t0 < 3.0
