@@ -375,6 +375,7 @@ def test_tolerances_of_this_robot_are_read_at_the_design_beta(tmp_path):
         ({"parameters": [{"name": "x", "tolerance": [1e-5]}]}, "expected a list of 2 numbers"),
         ({"beta": "2"}, "key 'beta'"),
         ({"design_beta": None}, "key 'design_beta'"),
+        ({"design_beta": 5}, "5 is not one of the file's β"),
         ({"parameters": [5]}, "parameters[0]"),
         ({"method_design": {"method": "cost", "parameters": ["a"], "tolerance": ["x"]}}, "method_design"),
     ],

@@ -49,6 +49,8 @@ def read_tolerances(
     if not betas or not all(_is_number(b) for b in betas):
         raise MechanismFormatError(path, "beta", "expected a non-empty list of numbers")
     col = int(np.argmin(np.abs(np.asarray(betas, dtype=float) - beta)))
+    if abs(float(betas[col]) - beta) > 1e-9 * max(abs(beta), 1.0):
+        raise MechanismFormatError(path, "design_beta", f"{beta:g} is not one of the file's β {betas[:8]}")
     name = doc.get("mechanism")
     if isinstance(name, str) and name != mechanism_name:
         raise InvalidRequestError(
