@@ -279,3 +279,23 @@ def test_a_silent_or_foreign_server_is_not_taken_for_a_scheduler(monkeypatch, gr
     finally:
         sock.close()
     assert time.monotonic() - t0 < 3.0
+
+
+@pytest.mark.skipif(not LINUX, reason="needs /proc")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_dask_local_workers_do_not_outlive_pkmtol(tmp_path, sig):
+    pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    proc = _start(LONG["calibrate"] + ["--dask", "local", "--workers", "2"], out)
+    kids = _wait_until_computing(proc, 2, timeout=120)
+    time.sleep(3.0)  # the cluster's workers are up and working
+    kids = sorted(set(kids) | set(_children(proc.pid)))
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=60)
+    if sig == signal.SIGTERM:
+        assert proc.returncode == 143
+        assert stderr.decode().strip().splitlines()[-1] == "pkmtol: interrupted; nothing was written"
+    deadline = time.monotonic() + 5.0
+    while any(_alive(k) for k in kids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert kids and not [k for k in kids if _alive(k)], "a Dask worker outlived pkmtol"
