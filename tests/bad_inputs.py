@@ -454,6 +454,25 @@ def calibrate_huge_coordinate(tmp: Path) -> Any:
     return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
 
 
+def errors_json_into_a_fifo(tmp: Path) -> Any:
+    os.mkfifo(tmp / "pipe")
+    return cli_run(["errors", str(robot(tmp)), "--json", str(tmp / "pipe")])
+
+
+def html_at_allocation_json(tmp: Path) -> Any:
+    (tmp / "out").mkdir()
+    return cli_run(
+        [
+            "allocate",
+            str(robot(tmp)),
+            "--out",
+            str(tmp / "out"),
+            "--html",
+            str(tmp / "out" / "allocation.json"),
+        ]
+    )
+
+
 def other_robots_allocation(tmp: Path) -> Any:
     path = tmp / "allocation.json"
     path.write_text(
@@ -475,6 +494,9 @@ CASES += [
     Case("Calibration options", "a huge `calibrate --holdout`", cli("calibrate", "{robot}", "--holdout", "10000000000", "--out", "{tmp}/cal"), E.ResourceLimitError, ("--holdout 10000000000", "needs about", "at most about"), {"argument": "--holdout"}),
     Case("Calibration options", "`allocate --poses 5` without `--compensation calibrated`", cli("allocate", "{robot}", "--poses", "5", "--out", "{tmp}/a"), IA, ("--poses 5", "only with --compensation calibrated"), {"argument": "--poses"}),
     Case("Calibration options", "`allocate --drawing-k 1e308`", cli("allocate", "{robot}", "--drawing-k", "1e308", "--out", "{tmp}/a"), IA, ("--drawing-k 1e+308", "(0, 10]"), {"argument": "--drawing-k"}),
+    Case("Outputs", "`errors --json` at a FIFO (or a device such as /dev/null)", errors_json_into_a_fifo, E.OutputError, ("pipe", "not a regular file")),
+    Case("Outputs", "`allocate --html` at the run's own allocation.json", html_at_allocation_json, E.OutputError, ("allocation.json", "of the same run")),
+    Case("Outputs", "`sweep` over four axes of 65,536 values", cli("sweep", "{robot}", *[f"--vary=reference_point.position_m[{i}]=0.0:0.01:65536" for i in range(3)], "--vary=task_space.radius_m=0.5:0.6:65536", "--out", "{tmp}/s"), E.SweepSpecError, ("18446744073709551616 variants",)),
 ]  # fmt: skip
 
 

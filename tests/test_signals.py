@@ -299,3 +299,24 @@ def test_dask_local_workers_do_not_outlive_pkmtol(tmp_path, sig):
     while any(_alive(k) for k in kids) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert kids and not [k for k in kids if _alive(k)], "a Dask worker outlived pkmtol"
+
+
+@pytest.mark.skipif(not LINUX, reason="needs /proc")
+def test_ctrl_c_during_new_leaves_no_folder(tmp_path):
+    out = tmp_path / "robot"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pkmtol.cli", "new", "tricept", "--out", str(out), "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    t0 = time.monotonic()
+    while not any(p.name.startswith(".robot.") for p in tmp_path.iterdir()):  # it is writing the draft
+        assert proc.poll() is None and time.monotonic() - t0 < 60, proc.communicate()
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr.decode()
+    assert stderr.decode().strip().splitlines()[-1] == "pkmtol: interrupted; nothing was written"
+    assert list(tmp_path.iterdir()) == []  # neither the robot nor its temporary folder
