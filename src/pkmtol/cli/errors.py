@@ -10,7 +10,7 @@ from pkmtol.cli.common import add_tool_options, apply_tool_options, mm, show_pro
 from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
 from pkmtol.exceptions import OutputError
-from pkmtol.files import write_atomic
+from pkmtol.files import destination, write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import overconstraint_lines, text_table
 
@@ -50,6 +50,8 @@ def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
     if args.json is not None and not (args.json.parent or Path(".")).is_dir():
         raise OutputError(args.json, f"folder {args.json.parent} does not exist")
+    if args.json is not None:
+        destination(args.json)  # a device or FIFO is refused before any work (docs/outputs.md)
     settings = calibrated_settings(mech, args)
     table = mode_error_table(
         mech, args.pset, args.compensation, settings, progress=show_progress(args.no_progress)
