@@ -18,6 +18,7 @@ issue 15 (on the 2-core CI machine):
     calibration study 100 × 50 × 200 (issue 12)      ≤ 60 s on one core
     allocate --compensation calibrated (issue 13)    ≤ 2× the ideal mode (whole process CPU)
     10⁶ linear samples (allocate's sampling stages) ≤ 3 s and ≤ 350 MB peak RSS
+    reading a measurement file of 10⁴/10⁵/10⁶ rows    10⁶ rows < 10 s, linear (issue 25)
     cost design on a 2,352-point grid              ≤ 3 s
 
 With ``--baseline TREE`` (another version's source tree) the whole-process rows are measured for
@@ -164,8 +165,15 @@ def main() -> None:
         help="a source tree of another pkmtol version (e.g. `git archive <commit> | tar -x -C TREE`): "
         "the whole-process rows run it too, interleaved, and print the ratio",
     )
+    ap.add_argument(
+        "--measurement-files-only", action="store_true", help="only the rows of reading measurement files"
+    )
     args = ap.parse_args()
     mech = load_mechanism(args.robot)
+    if args.measurement_files_only:
+        for row in measurement_file_rows(mech):
+            print("  ".join(row))
+        return
     grid = mech.task_space.grid()
     chain = ClosedChain(mech)
     batch = BatchChain(mech, chain=chain)
@@ -507,6 +515,7 @@ def main() -> None:
 
     rows += calibration_rows(mech, pset, chain, args, py)
     rows += instrument_rows(mech, pset, chain, args)
+    rows += measurement_file_rows(mech)
 
     w = max(len(r[0]) for r in rows)
     print(
@@ -682,6 +691,41 @@ def instrument_rows(mech, pset, chain, args):  # noqa: ANN001, ANN201 - script h
                     f"exact simulation {rep.timings_s['exact simulation']:.1f} s wall; "
                     f"{left} machine-cases left out",
                     "≤ 60 s on one core",
+                )
+            )
+    return rows
+
+
+def measurement_file_rows(mech):  # noqa: ANN001, ANN201 - script helper
+    """Issue 25: reading (and grouping into poses) a tracker file of 10⁴, 10⁵ and 10⁶ rows (wall and CPU).
+
+    Every pose has one target, so every row is a new pose: the worst case of the grouping. The
+    commands are random values inside a 1 m span, written as the tracker's CSV.
+    """
+    from pkmtol.calibration.measurement_files import measurements_csv, read_measurements
+
+    f = sum(len(limb.actuated) for limb in mech.limbs)
+    rows, times = [], {}
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in (10_000, 100_000, 1_000_000):
+            commands = rng.uniform(0.5, 1.5, size=(n, f))
+            points = rng.uniform(-0.5, 0.5, size=(n, 1, 3))
+            path = Path(tmp) / f"m{n}.csv"
+            path.write_text(measurements_csv(mech, commands, points))
+            t0, c0 = time.perf_counter(), time.process_time()
+            m = read_measurements(path, mech, 1)
+            times[n] = time.perf_counter() - t0
+            cpu = time.process_time() - c0
+            assert m.commands.shape == (n, f)
+            per_row = 1e6 * times[n] / n
+            rows.append(
+                (
+                    "reading a measurement file",
+                    f"{n:,} rows",
+                    f"{times[n]:.2f} s",
+                    f"{cpu:.2f} s CPU; {per_row:.2f} µs/row; ×{times[n] / times[10_000]:.0f} of 10⁴ rows",
+                    "10⁶ rows < 10 s, linear",
                 )
             )
     return rows

@@ -36,6 +36,7 @@ from pkmtol import (
     write_outputs,
 )
 from pkmtol import exceptions as E
+from pkmtol.calibration.fit_check import PoorFitError
 from pkmtol.cli import run as cli_run
 from pkmtol.design.budget import check_memory
 from pkmtol.kinematics import acceleration
@@ -430,10 +431,89 @@ CASES: list[Case] = [
 ]  # fmt: skip
 
 
+# ---- issue 25: calibrate's data path, tracebacks, outputs, silent acceptance
+
+
+def measured_at_grid(tmp: Path, edit: Callable[[np.ndarray], np.ndarray]) -> Path:
+    """A measurement file of the seed robot at 30 grid poses, its exact P positions changed by ``edit``."""
+    from pkmtol.calibration.measurement_files import measurements_csv
+
+    mech = load_mechanism(SEED)
+    chain = ClosedChain(mech)
+    poses = [chain.inverse(p) for p in mech.task_space.grid()[::4][:30]]
+    commands = np.array([pose.q_all[chain.actuated_idx] for pose in poses])
+    points = np.array([pose.p_m for pose in poses])[:, None, :]
+    path = tmp / "measured.csv"
+    path.write_text(measurements_csv(mech, commands, edit(points)))
+    return path
+
+
+def calibrate_zeros(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: 0.0 * y)
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def calibrate_offset(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: y + np.array([0.05, 0.0, 0.0]))
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def calibrate_huge_coordinate(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: y + np.array([0.0, 0.0, 1e300]))
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def errors_json_into_a_fifo(tmp: Path) -> Any:
+    os.mkfifo(tmp / "pipe")
+    return cli_run(["errors", str(robot(tmp)), "--json", str(tmp / "pipe")])
+
+
+def html_at_allocation_json(tmp: Path) -> Any:
+    (tmp / "out").mkdir()
+    return cli_run(
+        [
+            "allocate",
+            str(robot(tmp)),
+            "--out",
+            str(tmp / "out"),
+            "--html",
+            str(tmp / "out" / "allocation.json"),
+        ]
+    )
+
+
+def other_robots_allocation(tmp: Path) -> Any:
+    path = tmp / "allocation.json"
+    path.write_text(
+        '{"mechanism": "tricept", "parameter_set": "dh", "beta": [2.0], "design_beta": 2.0, "parameters": []}'
+    )
+    return cli_run(["calibrate", str(robot(tmp)), "--tolerances", str(path), "--out", str(tmp / "cal")])
+
+
+CASES += [
+    Case("Calibration data", "`calibrate --measurements` with every coordinate 0", calibrate_zeros, PoorFitError, ("measured.csv", "every measured coordinate is 0", "--accept-poor-fit"), {"cause": "zeros"}),
+    Case("Calibration data", "`calibrate --measurements` read 50 mm off the base frame", calibrate_offset, PoorFitError, ("measured.csv", "rigid offset of the tracker's frame", "--tracker-frame identify"), {"cause": "frame offset"}),
+    Case("Calibration data", "`calibrate --measurements` with a coordinate of 1e300", calibrate_huge_coordinate, E.MeasurementFileError, ("measured.csv", "column 'z'", "not a measurement"), {"column": "z"}),
+    Case("Calibration data", "`calibrate --measurements` naming a folder", cli("calibrate", "{robot}", "--measurements", "{tmp}", "--out", "{tmp}/cal"), E.MeasurementFileError, ("is a folder",)),
+    Case("Calibration data", "`calibrate --tolerances` with another robot's allocation.json", other_robots_allocation, E.InvalidRequestError, ("'tricept', not of 'r2rps_ups'",)),
+    Case("Calibration data", "`calibrate --tolerances` with `--measurements` but no `--prior`", cli("calibrate", "{robot}", "--measurements", "{tmp}/m.csv", "--tolerances", "{tmp}/a.json", "--out", "{tmp}/cal"), IA, ("--tolerances", "give --prior"), {"argument": "--tolerances"}),
+    Case("Calibration options", "`--noise 1e300mm`", cli("calibrate", "{robot}", "--noise", "1e300mm", "--out", "{tmp}/cal"), IA, ("--noise 1e300mm", "between 0 and 1 m"), {"argument": "--noise"}),
+    Case("Calibration options", "`calibrate --poses 0`", cli("calibrate", "{robot}", "--poses", "0", "--out", "{tmp}/cal"), IA, ("--poses 0", "≥ 1"), {"argument": "--poses"}),
+    Case("Calibration options", "`calibrate --random-sets -1`", cli("calibrate", "{robot}", "--random-sets", "-1", "--out", "{tmp}/cal"), IA, ("--random-sets -1",), {"argument": "--random-sets"}),
+    Case("Calibration options", "a huge `calibrate --holdout`", cli("calibrate", "{robot}", "--holdout", "10000000000", "--out", "{tmp}/cal"), E.ResourceLimitError, ("--holdout 10000000000", "needs about", "at most about"), {"argument": "--holdout"}),
+    Case("Calibration options", "`allocate --poses 5` without `--compensation calibrated`", cli("allocate", "{robot}", "--poses", "5", "--out", "{tmp}/a"), IA, ("--poses 5", "only with --compensation calibrated"), {"argument": "--poses"}),
+    Case("Calibration options", "`allocate --drawing-k 1e308`", cli("allocate", "{robot}", "--drawing-k", "1e308", "--out", "{tmp}/a"), IA, ("--drawing-k 1e+308", "(0, 10]"), {"argument": "--drawing-k"}),
+    Case("Outputs", "`errors --json` at a FIFO (or a device such as /dev/null)", errors_json_into_a_fifo, E.OutputError, ("pipe", "not a regular file")),
+    Case("Outputs", "`allocate --html` at the run's own allocation.json", html_at_allocation_json, E.OutputError, ("allocation.json", "of the same run")),
+    Case("Outputs", "`sweep` over four axes of 65,536 values", cli("sweep", "{robot}", *[f"--vary=reference_point.position_m[{i}]=0.0:0.01:65536" for i in range(3)], "--vary=task_space.radius_m=0.5:0.6:65536", "--out", "{tmp}/s"), E.SweepSpecError, ("18446744073709551616 variants",)),
+]  # fmt: skip
+
+
 def message(err: BaseException, tmp: Path) -> str:
     """The message with the case's folder shown as ``<tmp>`` and machine-dependent numbers normalised."""
     text = str(err).replace(str(tmp), "<tmp>")
     text = re.sub(r"more than the [\d.,]+ [GMT]B available", "more than the N GB available", text)
+    text = re.sub(r"at most about [\d,]+ for --", "at most about M for --", text)
     return re.sub(r"at most about [\d,]+ samples", "at most about M samples", text)
 
 

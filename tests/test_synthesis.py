@@ -192,7 +192,14 @@ def test_sweep_command_prints_and_writes_the_tables(tmp_path, capsys, wrist):
     assert "pkmtol sweep — r2rps_ups: 2 variants, parameter set 'dh', β = 2, serial" in text
     assert "0.2                                 yes" in text or "yes  (155.3, 579.6, 900.0)" in text
     assert "no: joint limb1_p3 out of its limits" in text
-    assert sorted(p.name for p in out.iterdir()) == ["sweep.csv", "sweep.json", "sweep.png", "sweep.svg"]
+    names = [
+        "pkmtol-run.json",
+        "sweep.csv",
+        "sweep.json",
+        "sweep.png",
+        "sweep.svg",
+    ]  # a run folder (issue 25)
+    assert sorted(p.name for p in out.iterdir()) == names
     rows = list(csv.reader(io.StringIO((out / "sweep.csv").read_text(encoding="utf-8"))))
     assert rows[0][:3] == ["reference_point.position_m[2]", "reachable", "reason"]
     assert rows[1][1] == "1" and rows[2][1] == "0"

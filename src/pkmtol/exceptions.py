@@ -569,7 +569,7 @@ class MeasurementFileError(CalibrationError):
         self.column = column
         where = f" line {line}" if line else ""
         col = f" column '{column}'" if column else ""
-        super().__init__(f"{self.path}:{where}{col}: {problem}")
+        super().__init__(f"{self.path}:{where}{col}: {problem}".replace("::", ":", 1))
 
 
 class NoiseFloorError(CalibrationError):

@@ -21,8 +21,13 @@ True
 from __future__ import annotations
 
 import atexit
+import contextlib
+import ctypes
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -157,9 +162,68 @@ def _process_pool(workers: int) -> ProcessPoolExecutor:
     if pool is None:
         methods = multiprocessing.get_all_start_methods()
         context = multiprocessing.get_context("fork" if "fork" in methods else None)
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        pool = ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=_worker_init, initargs=(os.getpid(),)
+        )
         _POOLS[workers] = pool
     return pool
+
+
+#: Seconds between a worker's checks that its parent is still alive (the portable watchdog).
+WATCHDOG_S = 0.5
+#: Linux prctl option: the signal a process gets when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _worker_init(parent_pid: int) -> None:
+    """A local worker: leave Ctrl-C to the parent (which stops the pool) and die with the parent.
+
+    On Linux the kernel sends the worker SIGTERM when its parent dies (``PR_SET_PDEATHSIG`` via
+    ``prctl``); everywhere, a daemon thread exits the worker once its parent is gone (its parent
+    pid changes), so that no worker outlives a killed ``pkmtol`` (issue 25).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="pkmtol-watchdog").start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(WATCHDOG_S)
+    os._exit(1)
+
+
+def abort() -> None:
+    """Stop every kept pool and Dask client now, without waiting for their work (on a signal or error).
+
+    The pools' processes are terminated (then killed if they linger); Dask clients and local
+    clusters are closed with a short timeout.
+    """
+    for pool in list(_POOLS.values()):
+        processes = list(getattr(pool, "_processes", {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for p in processes:
+            with contextlib.suppress(Exception):
+                p.terminate()
+        for p in processes:
+            with contextlib.suppress(Exception):
+                p.join(timeout=2.0)
+                if p.is_alive():
+                    p.kill()
+    _POOLS.clear()
+    for client in list(_CLIENTS.values()):
+        cluster = getattr(client, "cluster", None)
+        with contextlib.suppress(Exception):
+            client.close(timeout=2)
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=2)
+    _CLIENTS.clear()
 
 
 def _dask_client(ex: Executor) -> Any:
@@ -180,6 +244,7 @@ def _dask_client(ex: Executor) -> Any:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     else:
+        _probe(ex.dask)
         try:
             client = Client(ex.dask, timeout=DASK_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as err:
@@ -191,6 +256,65 @@ def _dask_client(ex: Executor) -> Any:
             ) from err
     _CLIENTS[key] = client
     return client
+
+
+#: The largest first message a Dask scheduler sends (its handshake: a few hundred bytes).
+_HANDSHAKE_BYTES = 1 << 20
+
+
+def _probe(address: str) -> None:
+    """Check that a Dask scheduler speaks at a ``tcp://`` address within :data:`DASK_TIMEOUT_S`.
+
+    A scheduler writes its handshake as soon as a connection opens (8 bytes of length, then the
+    message). A server that accepts and stays silent would hang ``Client`` far beyond its
+    timeout, and one that speaks another protocol made it allocate a "frame" of the length its
+    first bytes spell (an out-of-memory error): both are refused here, naming what was found.
+
+    Raises:
+        ExecutorError: no connection, no answer in time, or an answer that is not Dask's.
+    """
+    import socket
+    import struct
+
+    text = address.removeprefix("tcp://")
+    if "://" in text:
+        return  # tls://, ucx://, inproc://: left to Dask
+    host, _, port = text.rpartition(":")
+    try:
+        port_no = int(port)
+    except ValueError:
+        raise ExecutorError("dask", f"{address!r} is not host:port; give e.g. tcp://host:8786") from None
+    deadline = time.monotonic() + DASK_TIMEOUT_S
+    try:
+        with socket.create_connection(
+            (host.strip("[]") or "localhost", port_no), timeout=DASK_TIMEOUT_S
+        ) as sock:
+            head = b""
+            while len(head) < 8:
+                sock.settimeout(max(deadline - time.monotonic(), 0.01))
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise ExecutorError(
+            "dask",
+            f"the server at {address!r} accepts connections but sent no Dask handshake within "
+            f"{DASK_TIMEOUT_S:g} s; is it a Dask scheduler (`dask scheduler`)? (docs/scale.md)",
+        ) from None
+    except OSError as err:
+        raise ExecutorError(
+            "dask",
+            f"no Dask scheduler answers at {address!r} ({err.strerror or err}); start one with "
+            "`dask scheduler` and workers with `dask worker <address>` (docs/scale.md), or give --dask local",
+        ) from err
+    (size,) = struct.unpack("<Q", head) if len(head) == 8 else (-1,)
+    if not 0 < size <= _HANDSHAKE_BYTES:
+        raise ExecutorError(
+            "dask",
+            f"the server at {address!r} is not a Dask scheduler (its first bytes {head[:8]!r} are not "
+            "a Dask handshake); check the address and port (a scheduler listens on 8786 by default)",
+        )
 
 
 @atexit.register

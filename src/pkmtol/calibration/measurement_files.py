@@ -20,6 +20,7 @@ target exactly once.
 from __future__ import annotations
 
 import csv
+import gc
 import io
 import math
 import re
@@ -106,20 +107,27 @@ class Measurements:
 
 
 def read_measurements(path: Path | str, mechanism: Mechanism, n_targets: int) -> Measurements:
-    """Read a measurement file (see the module docstring).
+    """Read a measurement file (see the module docstring), in time linear in its rows.
+
+    The garbage collector is paused meanwhile: the millions of cells and rows of a large file are
+    all alive until the end, and collecting them over and over made the reading grow faster than
+    the file (10⁶ rows: 50 s instead of a few; scripts/benchmark.py --measurement-files-only).
 
     Raises:
         MeasurementFileError: a missing or unknown column, a unit missing or wrong, a value that is
             not a finite number, a duplicated row, an unknown target, a pose with a target missing.
     """
-    path = Path(path)
+    collecting = gc.isenabled()
+    gc.disable()
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError as err:
-        raise MeasurementFileError(path, 0, "", "file not found") from err
-    except UnicodeDecodeError as err:
-        raise MeasurementFileError(path, 0, "", f"not UTF-8 text ({err.reason} at byte {err.start})") from err
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text))) if any(c.strip() for c in r)]
+        return _read(Path(path), mechanism, n_targets)
+    finally:
+        if collecting:
+            gc.enable()
+
+
+def _read(path: Path, mechanism: Mechanism, n_targets: int) -> Measurements:
+    rows = _rows(path)
     if not rows:
         raise MeasurementFileError(path, 0, "", "the file is empty; it needs a header row and measurements")
     header_line, header = rows[0]
@@ -164,69 +172,221 @@ def read_measurements(path: Path | str, mechanism: Mechanism, n_targets: int) ->
     for needed in [n for n, _ in acts] + ["target", "x", "y", "z"]:
         if needed not in col_of:
             raise MeasurementFileError(path, header_line, needed, "missing column")
-    poses: dict[tuple[float, ...], dict[int, tuple[int, np.ndarray]]] = {}
-    order: list[tuple[float, ...]] = []
-    labels: dict[tuple[float, ...], str] = {}
-    for line, r in rows[1:]:
+    body = rows[1:]
+    if not body:
+        raise MeasurementFileError(path, 0, "", "no measurement rows after the header")
+    for line, r in body:
         if len(r) != len(header):
             raise MeasurementFileError(path, line, "", f"{len(r)} fields for {len(header)} columns")
-        u = tuple(_number(path, line, n, r[col_of[n]]) * scale_of[n] for n, _ in acts)
-        xyz = np.array([_number(path, line, a, r[col_of[a]]) * scale_of[a] for a in "xyz"])
-        t_text = r[col_of["target"]].strip()
-        if not re.fullmatch(r"\d+", t_text) or int(t_text) >= n_targets:
-            raise MeasurementFileError(
-                path,
-                line,
-                "target",
-                f"'{t_text}' is not a target index 0…{n_targets - 1} of [calibration] targets_m",
-            )
-        key = next((k for k in order if max(abs(a - b) for a, b in zip(k, u, strict=True)) < SAME_POSE), None)
-        if key is None:
-            key = u
-            order.append(u)
-            poses[u] = {}
-            labels[u] = r[col_of["pose"]].strip() if "pose" in col_of else str(len(order) - 1)
-        t = int(t_text)
-        if t in poses[key]:
-            raise MeasurementFileError(
-                path,
-                line,
-                "target",
-                f"target {t} of this pose is already measured at line {poses[key][t][0]} "
-                "(duplicated row): keep one, or average the repeats before calibrating",
-            )
-        poses[key][t] = (line, xyz)
-    if not order:
-        raise MeasurementFileError(path, 0, "", "no measurement rows after the header")
-    measured = np.empty((len(order), n_targets, 3))
-    lines = np.empty(len(order), dtype=int)
-    for i, key in enumerate(order):
-        got = poses[key]
-        missing = sorted(set(range(n_targets)) - set(got))
-        first = min(v[0] for v in got.values())
-        if missing:
-            raise MeasurementFileError(
-                path,
-                first,
-                "target",
-                f"pose '{labels[key]}' lacks target(s) {missing}; measure them or drop the pose",
-            )
-        for t, (_, xyz) in got.items():
-            measured[i, t] = xyz
-        lines[i] = first
-    return Measurements(
-        commands=np.array(order, dtype=float),
-        measured_m=measured,
-        labels=tuple(labels[k] for k in order),
-        lines=lines,
+    lines_of = np.array([line for line, _ in body], dtype=int)
+    cells = list(zip(*(r for _, r in body), strict=True))  # the columns
+    names = [n for n, _ in acts]
+    U = np.column_stack([_numbers(path, cells[col_of[n]], lines_of, n) * scale_of[n] for n in names])
+    XYZ = np.column_stack([_numbers(path, cells[col_of[a]], lines_of, a) * scale_of[a] for a in "xyz"])
+    targets = _targets(path, cells[col_of["target"]], lines_of, n_targets)
+    pose_of = _group(U)
+    n_poses = int(pose_of.max()) + 1
+    code = pose_of * n_targets + targets  # one code per (pose, target)
+    order = np.argsort(code, kind="stable")
+    repeat = np.flatnonzero(code[order][1:] == code[order][:-1])
+    if repeat.size:
+        dup = order[repeat + 1]  # each repeat's row, its first measurement just before it
+        i = int(dup.min())
+        j = int(order[repeat[np.argmin(dup)]])
+        raise MeasurementFileError(
+            path,
+            int(lines_of[i]),
+            "target",
+            f"target {targets[i]} of this pose is already measured at line {lines_of[j]} "
+            "(duplicated row): keep one, or average the repeats before calibrating",
+        )
+    seen = np.zeros((n_poses, n_targets), dtype=bool)
+    seen[pose_of, targets] = True
+    measured = np.empty((n_poses, n_targets, 3))
+    measured[pose_of, targets] = XYZ
+    first = np.full(n_poses, len(body), dtype=int)
+    np.minimum.at(first, pose_of, np.arange(len(body)))
+    firsts = first.tolist()
+    labels = tuple(
+        body[i][1][col_of["pose"]].strip() if "pose" in col_of else str(k) for k, i in enumerate(firsts)
     )
+    lacking = np.flatnonzero(~seen.all(axis=1))
+    if lacking.size:
+        k = int(lacking[0])
+        missing = [int(t) for t in np.flatnonzero(~seen[k])]
+        raise MeasurementFileError(
+            path,
+            int(lines_of[first[k]]),
+            "target",
+            f"pose '{labels[k]}' lacks target(s) {missing}; measure them or drop the pose",
+        )
+    return Measurements(commands=U[first], measured_m=measured, labels=labels, lines=lines_of[first])
+
+
+#: Commands are binned on a grid this much coarser than :data:`SAME_POSE` before they are compared.
+_BIN = 1000.0
+#: Largest magnitude of a value in its file's unit (1e9 mm = 1000 km: beyond it, not a measurement).
+_LARGEST = 1e9
+
+
+def _group(U: np.ndarray) -> np.ndarray:
+    """The pose index (0, 1, … in order of first appearance) of every row's commands (N, f).
+
+    Rows whose commands agree within :data:`SAME_POSE` form one pose. The commands are binned on a
+    grid :data:`_BIN` × ``SAME_POSE`` wide (``np.unique``, no Python loop over the rows); a row
+    within ``SAME_POSE`` of a bin edge joins the neighbouring bin's pose when it agrees with it.
+    A bin that holds commands further apart than ``SAME_POSE`` (poses 1e-9 … 1e-6 apart) is left
+    to :func:`_group_rows`, which compares every row with the poses of its bins.
+    """
+    cell = _BIN * SAME_POSE
+    scaled = U / cell
+    keys = np.round(scaled)
+    near = np.abs(scaled - keys) > 0.5 - 1.0 / _BIN
+    packed = _packed(keys)
+    uniq, first, inverse = np.unique(packed, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    if np.any(np.max(np.abs(U - U[first[inverse]]), axis=1) >= SAME_POSE):
+        return _group_rows(U)
+    parent = np.arange(len(uniq))
+    for i in np.flatnonzero(near.any(axis=1)).tolist():  # rare: within SAME_POSE of a bin edge
+        candidates = [keys[i]]
+        for j in np.flatnonzero(near[i]).tolist():
+            step = 1.0 if scaled[i, j] > keys[i, j] else -1.0
+            for c in list(candidates):
+                moved = c.copy()
+                moved[j] += step
+                candidates.append(moved)
+        for c in candidates[1:]:
+            b = int(np.searchsorted(uniq, _packed(c[None, :])[0]))
+            if b < len(uniq) and uniq[b] == _packed(c[None, :])[0]:
+                if np.max(np.abs(U[first[b]] - U[i])) < SAME_POSE:
+                    ra, rb = _root(parent, int(inverse[i])), _root(parent, b)
+                    parent[max(ra, rb)] = min(ra, rb)
+    while True:  # pointer jumping: every bin to its root
+        up = parent[parent]
+        if np.array_equal(up, parent):
+            break
+        parent = up
+    starts = np.full(len(uniq), len(U))
+    np.minimum.at(starts, parent, first)  # each pose's first row
+    pose_bins = np.flatnonzero(parent == np.arange(len(parent)))  # the roots
+    rank = np.empty(len(uniq), dtype=int)
+    rank[pose_bins[np.argsort(starts[pose_bins], kind="stable")]] = np.arange(len(pose_bins))
+    return rank[parent[inverse]]
+
+
+def _packed(keys: np.ndarray) -> np.ndarray:
+    """Rows of bin indices (m, f) as one sortable value each (their int64 bytes)."""
+    k = np.ascontiguousarray(keys.astype(np.int64))
+    return k.view(np.dtype((np.void, 8 * k.shape[1]))).ravel()
+
+
+def _root(parent: np.ndarray, b: int) -> int:
+    while parent[b] != b:
+        b = int(parent[b])
+    return b
+
+
+def _group_rows(U: np.ndarray) -> np.ndarray:
+    """:func:`_group` row by row: each row compared with the poses of its bin and of the bins it is near."""
+    cell = _BIN * SAME_POSE
+    scaled = U / cell
+    keys = np.round(scaled)
+    frac = scaled - keys
+    near = np.abs(frac) > 0.5 - 1.0 / _BIN
+    near_any = near.any(axis=1).tolist()
+    bins: dict[tuple[float, ...], list[int]] = {}
+    poses: list[list[float]] = []
+    out = np.empty(len(U), dtype=int)
+    rows = U.tolist()
+    for i, (key_list, u) in enumerate(zip(keys.tolist(), rows, strict=True)):
+        key = tuple(key_list)
+        candidates = [key]
+        if near_any[i]:
+            for j in np.flatnonzero(near[i]).tolist():
+                step = 1.0 if frac[i, j] > 0 else -1.0
+                candidates += [c[:j] + (c[j] + step,) + c[j + 1 :] for c in candidates]
+        found = -1
+        for c in candidates:
+            for k in bins.get(c, ()):
+                if max(abs(a - b) for a, b in zip(poses[k], u, strict=True)) < SAME_POSE:
+                    found = k
+                    break
+            if found >= 0:
+                break
+        if found < 0:
+            found = len(poses)
+            poses.append(u)
+            bins.setdefault(key, []).append(found)
+        out[i] = found
+    return out
+
+
+def _rows(path: Path) -> list[tuple[int, list[str]]]:
+    """The non-empty CSV rows of ``path`` with their 1-based line numbers."""
+    if path.is_dir():
+        raise MeasurementFileError(path, 0, "", "is a folder; give the measurement CSV file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError as err:
+        raise MeasurementFileError(path, 0, "", "file not found") from err
+    except UnicodeDecodeError as err:
+        raise MeasurementFileError(path, 0, "", f"not UTF-8 text ({err.reason} at byte {err.start})") from err
+    except OSError as err:
+        raise MeasurementFileError(path, 0, "", f"cannot be read ({err.strerror or err})") from err
+    try:
+        return [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text))) if "".join(r).strip()]
+    except csv.Error as err:
+        raise MeasurementFileError(path, 0, "", f"not a CSV file ({err})") from err
+
+
+def _numbers(path: Path, cells: tuple[str, ...], lines: np.ndarray, column: str) -> np.ndarray:
+    """A column's cells as finite numbers of a sane size (in the file's unit), or the first bad one named."""
+    try:
+        v = np.array(cells, dtype=float)
+    except ValueError:
+        for line, text in zip(lines.tolist(), cells, strict=True):
+            _number(path, line, column, text)
+        raise  # pragma: no cover - a cell numpy cannot read is one float() cannot read
+    bad = np.flatnonzero(~np.isfinite(v) | (np.abs(v) > _LARGEST))
+    if bad.size:
+        _number(path, int(lines[bad[0]]), column, cells[bad[0]])
+    return v
+
+
+def _targets(path: Path, cells: tuple[str, ...], lines: np.ndarray, n_targets: int) -> np.ndarray:
+    """The ``target`` column as indices 0 … n_targets − 1."""
+    try:
+        out = np.array(cells, dtype=np.int64)  # accepts " 1", refuses "1.0" and "x"
+    except (ValueError, OverflowError):
+        out = None
+    if out is not None and out.size and out.min() >= 0 and out.max() < n_targets:
+        if all(c.strip().isdigit() for c in set(cells)):  # no '+1'
+            return out
+    for line, text in zip(lines.tolist(), cells, strict=True):
+        t_text = text.strip()
+        if not t_text.isdigit() or not t_text.isascii() or int(t_text) >= n_targets:
+            raise MeasurementFileError(
+                path,
+                line,
+                "target",
+                f"'{t_text[:40]}' is not a target index 0…{n_targets - 1} of [calibration] targets_m",
+            )
+    return np.array([int(c) for c in cells], dtype=int)  # pragma: no cover - refused above
 
 
 def _number(path: Path, line: int, column: str, text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise MeasurementFileError(path, line, column, f"'{text}' is not a number") from None
+        raise MeasurementFileError(path, line, column, f"'{text.strip()[:40]}' is not a number") from None
     if not math.isfinite(v):
-        raise MeasurementFileError(path, line, column, f"'{text}' is not a finite number")
+        raise MeasurementFileError(path, line, column, f"'{text.strip()[:40]}' is not a finite number")
+    if abs(v) > _LARGEST:
+        raise MeasurementFileError(
+            path,
+            line,
+            column,
+            f"'{text.strip()[:40]}' is larger than {_LARGEST:g} in its unit: not a measurement",
+        )
     return v

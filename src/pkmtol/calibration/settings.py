@@ -189,6 +189,13 @@ class CalibrationSettings:
             raise InvalidRequestError(
                 "calibration noise must be ≥ 0 and the manufacturing σ > 0; give e.g. noise '0.01 mm'"
             )
+        if max(self.noise_m, self.manufacturing_length_m, self.orientation_noise_rad) > 1.0 or (
+            self.manufacturing_angle_rad > 1.0
+        ):  # squares of larger ones overflow nowhere, but no instrument or machine is that far off
+            raise InvalidRequestError(
+                "calibration noise and manufacturing σ must be at most 1 m (1 rad); give e.g. noise "
+                "'0.01 mm', manufacturing_length '0.1 mm'"
+            )
         for name, value, low in (
             ("poses", self.poses, 1),
             ("candidates", self.candidates, 0),

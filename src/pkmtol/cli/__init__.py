@@ -14,14 +14,15 @@ registers its arguments and sets ``run=`` to a function ``(args) -> int``, and l
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import warnings
 from collections.abc import Sequence
 from typing import TextIO
 
-from pkmtol import __version__
+from pkmtol import __version__, executor, files
 from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
-from pkmtol.cli.common import EXIT_ERROR
+from pkmtol.cli.common import EXIT_ERROR, Interrupted, signals_as_interrupts
 from pkmtol.exceptions import PkmtolError, PkmtolWarning
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
@@ -38,15 +39,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit code: 0 on success, 1 if a check found problems, 2 on a pkmtol error.
 
     """
-    with warnings.catch_warnings():
+    written = files.commits()
+    with warnings.catch_warnings(), signals_as_interrupts():
         warnings.simplefilter("always", PkmtolWarning)
         warnings.showwarning = _show_warning
         try:
             return run(argv)
+        except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM (Interrupted)
+            executor.abort()
+            signum = err.signum if isinstance(err, Interrupted) else int(signal.SIGINT)
+            done = files.commits() - written
+            print(
+                "pkmtol: interrupted; nothing was written"
+                if done == 0
+                else f"pkmtol: interrupted after its files were written whole ({done} write(s))",
+                file=sys.stderr,
+            )
+            return 128 + signum
+        except RecursionError:
+            executor.abort()
+            print("pkmtol: error: an input is nested too deeply to read; simplify it", file=sys.stderr)
+            return EXIT_ERROR
         except PkmtolError as err:
+            executor.abort()  # a run's pool is stopped on every error
             print(f"pkmtol: error: {err}", file=sys.stderr)
             return EXIT_ERROR
         except MemoryError:
+            executor.abort()
             print(
                 "pkmtol: error: out of memory; ask for fewer --samples or --verification-poses, "
                 "or a coarser task-space grid",

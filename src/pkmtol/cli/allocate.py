@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.cli.calibration_options import add_plan_options, calibrated_settings
 from pkmtol.cli.common import (
     OPTION_OF_FIELD,
     add_executor_options,
@@ -26,7 +26,7 @@ from pkmtol.model.drawing import CONVENTIONS, DrawingSettings
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.headline import headline_lines
 from pkmtol.present.outputs import render_tables
-from pkmtol.present.run_folder import RunFolder
+from pkmtol.present.run_folder import MANIFEST, RUN_FILES, RunFolder, check_distinct
 from pkmtol.present.tables import summary_text
 from pkmtol.present.viewer.options import SceneOptions
 from pkmtol.units import parse_angle
@@ -224,7 +224,7 @@ def _run(args: argparse.Namespace) -> int:
             progress=show_progress(args.no_progress),
             executor=executor_from(args),
             compensation=args.compensation,
-            calibration=plan_settings(mech, args, args.seed) if args.compensation == "calibrated" else None,
+            calibration=calibrated_settings(mech, args, args.seed),
             orientation_target_rad=orientation,
             tool_axis=None if args.tool_axis is None else tuple(args.tool_axis),
             drawing=drawing_option(mech.extra.get("drawing"), args.drawing, args.drawing_k),
@@ -234,6 +234,8 @@ def _run(args: argparse.Namespace) -> int:
     for name, path in (("--html", args.html), ("--report", args.report)):
         if path is not None and not (path.parent if str(path.parent) else Path(".")).is_dir():
             raise OutputError(path, f"folder {path.parent} does not exist; create it first ({name})")
+    given = [p for p in (args.html, args.report) if p is not None]
+    check_distinct([out / name for name in (*RUN_FILES, MANIFEST)] + given)  # before any work
     options = scene_options(args.ellipsoids)
     with RunFolder(out) as run:
         result = allocate(mech, opts)
@@ -284,6 +286,8 @@ def drawing_option(
     """
     if convention is None and k is None:
         return None
+    if k is not None and not 0 < k <= 10:  # issue 25: 1e308 overflowed the drawing's ±t
+        raise InvalidArgumentError("--drawing-k", k, "the k of ±t = k·σ must be in (0, 10], e.g. 3")
     base = table if table is not None else DrawingSettings()
     if k is not None and (convention or base.convention) == "uniform":
         raise InvalidArgumentError(

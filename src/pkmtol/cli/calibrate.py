@@ -3,27 +3,30 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.fit_check import FitVerdict, PoorFitError, fit_verdict
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.calibration.study_limits import check_calibration_request
+from pkmtol.calibration.tolerance_file import read_tolerances
 from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
+from pkmtol.design.budget import available_memory
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
 from pkmtol.error_model.task import hybrid_calibration_refusal
-from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
-from pkmtol.files import write_atomic
+from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
+from pkmtol.executor import Executor
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.present.calibration_tables import (
@@ -43,6 +46,7 @@ from pkmtol.present.instrument_tables import (
     instrument_residuals_csv,
     instrument_text,
 )
+from pkmtol.present.run_folder import RunFolder, check_distinct
 from pkmtol.present.tables import check_output_folder
 
 
@@ -82,6 +86,12 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         help="allocation.json of a `pkmtol allocate` run: the σ of the uncompensatable errors "
         "(default: a quick FOSM allocation at the design β)",
     )
+    p.add_argument(
+        "--accept-poor-fit",
+        action="store_true",
+        help="--measurements: write the calibrated machine even when the fit did not converge or left "
+        "residuals above 5× the noise (the report says it was overridden)",
+    )
     p.add_argument("--random-sets", type=int, default=10, help="random plans to compare with (default 10)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<robot>/calibration)")
@@ -99,36 +109,7 @@ def _tolerances(
     A calibrated-mode design's identified parameters are drawn at the manufacturing σ of ``settings``.
     """
     if path is not None:
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-            col = int(np.argmin(np.abs(np.asarray(doc["beta"], dtype=float) - float(doc["design_beta"]))))
-            by_name = {p["name"]: p["tolerance"] for p in doc["parameters"]}
-            kind = doc["parameter_set"]
-        except (OSError, ValueError, KeyError, TypeError) as err:
-            raise MechanismFormatError(
-                path, "-", f"not an allocation.json of `pkmtol allocate` ({err})"
-            ) from err
-        if kind != pset.kind:
-            raise InvalidRequestError(
-                f"{path} allocates the '{kind}' parameter set but this calibration uses '{pset.kind}'; "
-                f"give --set {kind}"
-            )
-        tol = np.full(len(pset), np.nan)
-        design = doc.get("method_design") or {}
-        chosen = dict(zip(design.get("parameters", []), design.get("tolerance", []), strict=False))
-        manufacturing = settings.manufacturing_sigma(pset)
-        classes_in_mode = {p["name"]: p.get("class_in_mode") for p in doc["parameters"]}
-        for i, name in enumerate(pset.names):
-            t = chosen.get(name, None) if chosen else None
-            if t is None:
-                row = by_name.get(name)
-                t = None if row is None else row[col]
-            if t is not None:
-                tol[i] = float(t)
-            elif classes_in_mode.get(name) == "identified":
-                tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
-        what = f"'{design['method']}' design" if design else "FOSM design-β tolerances"
-        return tol, f"{what} of {path}"
+        return read_tolerances(path, mech.name, pset, settings)
     res = allocate(
         mech,
         DesignOptions(
@@ -164,10 +145,18 @@ def _instrument_data(
         tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
         sigma = design_sigma(pset, classes, settings, tol)
     cal = calibrate_instrument_data(mech, pset, classes, settings, meas, args.measurements, sigma)
+    r = cal.result
+    verdict = fit_verdict(
+        r.converged, r.iterations, r.rms_after_m, settings.noise_m, r.residuals_m, labels=meas.labels
+    )
+    note = _judged(verdict, args)
     files = [
-        (out / "identified.json", dumps(instrument_json(cal, pset.names)).encode()),
+        (out / "identified.json", _json_with(instrument_json(cal, pset.names), verdict)),
         (out / "identified.csv", instrument_identified_csv(cal).encode()),
-        (out / "identified.md", ("# Identified parameters\n\n" + instrument_text(cal, True)).encode()),
+        (
+            out / "identified.md",
+            ("# Identified parameters\n\n" + note + instrument_text(cal, True)).encode(),
+        ),
         (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
     ]
     try:
@@ -176,8 +165,31 @@ def _instrument_data(
         files += write_calibrated_folder(out / "calibrated", urdfs, toml)
     except Exception as err:  # noqa: BLE001 - reported, the identification stands
         print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
-    print(instrument_text(cal), end="")
+    print(note + instrument_text(cal), end="")
     return files
+
+
+def _judged(verdict: FitVerdict, args: argparse.Namespace) -> str:
+    """Refuse a poor fit (:class:`PoorFitError`) unless ``--accept-poor-fit``; the report's note then."""
+    if not verdict.poor:
+        return ""
+    if not args.accept_poor_fit:
+        raise PoorFitError(args.measurements, verdict.cause, verdict.problem)
+    print(f"pkmtol: warning: poor fit accepted by --accept-poor-fit: {verdict.problem}", file=sys.stderr)
+    return f"POOR FIT, written because --accept-poor-fit overrode the check: {verdict.problem}\n\n"
+
+
+def _json_with(doc: dict, verdict: FitVerdict) -> bytes:
+    """identified.json: the identification with its fit check (and whether it was overridden)."""
+    doc["fit_check"] = {
+        "poor": verdict.poor,
+        "overridden_by_accept_poor_fit": verdict.poor,
+        "cause": verdict.cause,
+        "problem": verdict.problem,
+        "rms_after_m": verdict.rms_after_m,
+        "limit_m": verdict.limit_m,
+    }
+    return dumps(doc).encode()
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -196,12 +208,63 @@ def _run(args: argparse.Namespace) -> int:
     if args.plan_per_machine and not args.simulate:
         raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
+    if args.tolerances is not None and args.measurements is not None and not settings.prior:
+        raise InvalidArgumentError(
+            "--tolerances",
+            str(args.tolerances),
+            "with --measurements only a --prior identification reads it (the σ of the prior); give "
+            "--prior (or [calibration] prior = true), or leave --tolerances out",
+        )
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = parameter_set(mech, args.pset or default_set(mech))
+    check_calibration_request(
+        len(pset),
+        3 * settings.targets(mech).shape[0],
+        args.machines,
+        args.holdout,
+        settings.candidates,
+        args.random_sets,
+        args.simulate,
+        available_memory(),
+    )
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
-    check_output_folder(out)
     if args.plan is not None:
         check_output_folder(args.plan.parent if str(args.plan.parent) else Path("."))
+        check_distinct([out / name for name in RUN_NAMES] + [args.plan])  # --plan at a run file
+    with RunFolder(out) as run:  # one run at a time, written all or nothing (issue 25)
+        files = _outputs(args, mech, settings, executor, pset, out)
+        inside = {p.name: data for p, data in files if p.parent == out}
+        outside = {p: data for p, data in files if p.parent != out}
+        for path in outside:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        written = run.write(inside, outside)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+#: The files a calibrate run may write into its folder (``--plan`` must not be one of them).
+RUN_NAMES = (
+    "identified.json",
+    "identified.csv",
+    "identified.md",
+    "residuals.csv",
+    "calibration_plan.json",
+    "calibration_plan.md",
+    "study.json",
+    "study.md",
+)
+
+
+def _outputs(
+    args: argparse.Namespace,
+    mech: Mechanism,
+    settings: CalibrationSettings,
+    executor: Executor,
+    pset: ParameterSet,
+    out: Path,
+) -> list[tuple[Path, bytes]]:
+    """Compute what ``args`` asks for and print it; the files of the run, rendered in memory."""
     classes = grid_classes(mech, pset)
     files: list[tuple[Path, bytes]] = []
     figures: dict[str, object] = {}
@@ -217,11 +280,29 @@ def _run(args: argparse.Namespace) -> int:
             tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
             sigma = design_sigma(pset, classes, settings, tol)
         cal = calibrate_measurements(mech, pset, classes, settings, meas, args.measurements, sigma)
-        text = identified_text(cal)
+        r = cal.result
+        verdict = fit_verdict(
+            r.converged,
+            r.iterations,
+            r.rms_after_m,
+            cal.ident.noise_m,
+            r.residuals_m,
+            meas.measured_m,
+            r.residuals_before_m,
+            cal.H[:, cal.ident.columns],
+            cal.ident.scale,
+            meas.labels,
+            meas.lines,
+        )
+        note = _judged(verdict, args)
+        text = note + identified_text(cal)
         files += [
-            (out / "identified.json", dumps(identified_json(cal, pset.names)).encode()),
+            (out / "identified.json", _json_with(identified_json(cal, pset.names), verdict)),
             (out / "identified.csv", identified_csv(cal).encode()),
-            (out / "identified.md", ("# Identified parameters\n\n" + identified_text(cal, True)).encode()),
+            (
+                out / "identified.md",
+                ("# Identified parameters\n\n" + note + identified_text(cal, True)).encode(),
+            ),
             (out / "residuals.csv", residuals_csv(cal).encode()),
         ]
         try:
@@ -299,10 +380,6 @@ def _run(args: argparse.Namespace) -> int:
             except FiguresError as err:
                 print(f"pkmtol: warning: no figures: {err}", file=sys.stderr)
         print(text, end="")
-    for path, data in files:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(path, data)
-        print(f"wrote {path}")
     if not files:  # pragma: no cover - every mode writes its tables
         raise OutputError(out, "nothing to write")
-    return 0
+    return files

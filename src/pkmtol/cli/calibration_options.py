@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from pkmtol.calibration.settings import (
@@ -13,6 +14,7 @@ from pkmtol.calibration.settings import (
     CalibrationSettings,
     settings_from_table,
 )
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.units import parse_length
 
@@ -62,8 +64,33 @@ def add_plan_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: The option of each settings field, for messages that name what the user typed.
+OPTION_OF_SETTING = {
+    "instrument": "--instrument",
+    "tracker_frame": "--tracker-frame",
+    "poses": "--poses",
+    "selection": "--selection",
+    "controller": "--controller",
+    "noise_m": "--noise",
+    "prior": "--prior",
+    "rank_tolerance": "--rank-tolerance",
+    "candidates": "--candidates",
+    "seed": "--seed",
+}
+#: The largest instrument noise σ a command line may give [m] (a tracker reads to µm, not metres).
+LARGEST_NOISE_M = 1.0
+
+
 def plan_settings(mech: Mechanism, args: argparse.Namespace, seed: int | None = None) -> CalibrationSettings:
-    """The ``[calibration]`` table of ``mech``, overridden by the options given."""
+    """The ``[calibration]`` table of ``mech``, overridden by the options given.
+
+    Raises:
+        MechanismFormatError: the table of mechanism.toml is wrong (its key named).
+        InvalidArgumentError: an option's value is wrong (the option named, not the table).
+    """
+    for option, value, low in (("--poses", args.poses, 1), ("--candidates", args.candidates, 0)):
+        if value is not None and value < low:
+            raise InvalidArgumentError(option, value, f"give an integer ≥ {low}")
     controller: str | tuple[str, ...] | None = None
     if args.controller is not None:
         names = [c.strip() for c in args.controller.split(",") if c.strip()]
@@ -74,11 +101,72 @@ def plan_settings(mech: Mechanism, args: argparse.Namespace, seed: int | None = 
         "poses": args.poses,
         "selection": args.selection,
         "controller": controller,
-        "noise_m": None if args.noise is None else parse_length(args.noise, "--noise"),
+        "noise_m": None if args.noise is None else _noise(args.noise),
         "prior": True if args.prior else None,
         "rank_tolerance": args.rank_tolerance,
         "candidates": args.candidates,
         "seed": seed,
     }
     path = (mech.root / "mechanism.toml") if mech.root is not None else Path("<mechanism>")
-    return settings_from_table(dict(mech.extra.get("calibration") or {}), path, **overrides)
+    table = dict(mech.extra.get("calibration") or {})
+    base = settings_from_table(table, path)  # the table alone: its own errors name its keys
+    for key, value in overrides.items():
+        if value is None:
+            continue
+        try:
+            dataclasses.replace(base, **{key: value})
+        except InvalidRequestError as err:
+            typed = getattr(args, "noise", value) if key == "noise_m" else value
+            shown = ",".join(typed) if isinstance(typed, tuple) else typed
+            raise InvalidArgumentError(OPTION_OF_SETTING[key], shown, str(err)) from err
+    return settings_from_table(table, path, **overrides)
+
+
+#: The plan options (argparse destinations) and how they are typed.
+PLAN_OPTIONS = {
+    "instrument": "--instrument",
+    "tracker_frame": "--tracker-frame",
+    "poses": "--poses",
+    "selection": "--selection",
+    "controller": "--controller",
+    "noise": "--noise",
+    "prior": "--prior",
+    "rank_tolerance": "--rank-tolerance",
+    "candidates": "--candidates",
+}
+
+
+def calibrated_settings(
+    mech: Mechanism, args: argparse.Namespace, seed: int | None = None
+) -> CalibrationSettings | None:
+    """``allocate`` / ``errors``: the plan settings with ``--compensation calibrated``, else None.
+
+    Raises:
+        InvalidArgumentError: a plan option given without ``--compensation calibrated`` (it would be
+            ignored), or a bad option value (:func:`plan_settings`).
+    """
+    if args.compensation == "calibrated":
+        return plan_settings(mech, args, seed)
+    for dest, option in PLAN_OPTIONS.items():
+        value = getattr(args, dest, None)
+        if value is not None and value is not False:
+            raise InvalidArgumentError(
+                option,
+                value,
+                f"a calibration-plan option; it is read only with --compensation calibrated (this run "
+                f"is --compensation {args.compensation}): add that, or leave {option} out",
+            )
+    return None
+
+
+def _noise(text: str) -> float:
+    """``--noise``: a length with its unit, ≥ 0 and at most :data:`LARGEST_NOISE_M`."""
+    try:
+        value = parse_length(text, "--noise")
+    except InvalidRequestError as err:
+        raise InvalidArgumentError("--noise", text, str(err).removeprefix("--noise: ")) from err
+    if not 0 <= value <= LARGEST_NOISE_M:
+        raise InvalidArgumentError(
+            "--noise", text, "an instrument's noise σ must be between 0 and 1 m, e.g. 0.01mm"
+        )
+    return value

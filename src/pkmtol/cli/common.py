@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import signal
 import sys
+import threading
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -19,6 +21,41 @@ from pkmtol.units import parse_angle, parse_length
 EXIT_ERROR = 2
 #: Exit code of a check that ran but found problems.
 EXIT_PROBLEMS = 1
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM: the run stops; :func:`pkmtol.cli.main` prints one line and exits 128 + signal."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def signals_as_interrupts() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (restored afterwards).
+
+    Off the main thread (a caller's worker thread) signals cannot be handled: nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    fired: list[int] = []
+
+    def interrupt(signum: int, frame: object) -> None:
+        if fired:  # a second Ctrl-C while the first one is being handled: already stopping
+            return
+        fired.append(signum)
+        raise Interrupted(signum)
+
+    old = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
 
 #: Option of each DesignOptions field, for messages that name what the user typed.
 OPTION_OF_FIELD = {

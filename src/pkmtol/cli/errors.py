@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pkmtol.cli.calibration_options import add_plan_options, plan_settings
+from pkmtol.cli.calibration_options import add_plan_options, calibrated_settings
 from pkmtol.cli.common import add_tool_options, apply_tool_options, mm, show_progress
 from pkmtol.design.modes import mode_error_table
 from pkmtol.error_model.sweep import CLASSES
 from pkmtol.exceptions import OutputError
-from pkmtol.files import write_atomic
+from pkmtol.files import destination, write_atomic
 from pkmtol.model.loader import load_mechanism
 from pkmtol.present.tables import overconstraint_lines, text_table
 
@@ -50,7 +50,9 @@ def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
     if args.json is not None and not (args.json.parent or Path(".")).is_dir():
         raise OutputError(args.json, f"folder {args.json.parent} does not exist")
-    settings = plan_settings(mech, args) if args.compensation == "calibrated" else None
+    if args.json is not None:
+        destination(args.json)  # a device or FIFO is refused before any work (docs/outputs.md)
+    settings = calibrated_settings(mech, args)
     table = mode_error_table(
         mech, args.pset, args.compensation, settings, progress=show_progress(args.no_progress)
     )

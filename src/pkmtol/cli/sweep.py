@@ -11,9 +11,10 @@ from pkmtol.design.exact import CRITERIA
 from pkmtol.design.options import DEFAULT_CRITERION, DEFAULT_METHOD, METHODS
 from pkmtol.design.synthesis import check_keys, parse_vary, read_doc, synthesize
 from pkmtol.exceptions import FiguresError, InvalidArgumentError
+from pkmtol.executor import Executor
 from pkmtol.model.loader import load_mechanism
-from pkmtol.present.synthesis import summary_text, write_sweep
-from pkmtol.present.tables import check_output_folder
+from pkmtol.present.run_folder import RunFolder
+from pkmtol.present.synthesis import summary_text, sweep_figure, to_csv, to_json
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -78,7 +79,11 @@ def _run(args: argparse.Namespace) -> int:
     check_keys(read_doc(args.robot), varies)
     executor = executor_from(args)
     out = args.out if args.out is not None else Path("out") / f"{args.robot.name}-sweep"
-    check_output_folder(out)
+    with RunFolder(out) as run:  # one run at a time, written all or nothing (issue 25)
+        return _sweep(args, varies, executor, run)
+
+
+def _sweep(args: argparse.Namespace, varies: list, executor: Executor, run: RunFolder) -> int:
     from tqdm import tqdm
 
     total = 1
@@ -100,11 +105,16 @@ def _run(args: argparse.Namespace) -> int:
     )
     bar.close()
     print(summary_text(result), end="")
-    try:
-        files = write_sweep(result, out, figures=not args.no_figures)
-    except FiguresError as err:
-        print(f"pkmtol: warning: no figure: {err}", file=sys.stderr)
-        files = write_sweep(result, out, figures=False)
-    for path in files:
+    files = {"sweep.csv": to_csv(result).encode(), "sweep.json": to_json(result).encode()}
+    if not args.no_figures:
+        try:
+            from pkmtol.present.plotting import render
+
+            fig = sweep_figure(result)
+            files.update({f"sweep.{fmt}": render(fig, fmt, 150) for fmt in ("png", "svg")})
+        except (FiguresError, ImportError) as err:
+            print(f"pkmtol: warning: no figure: {err}", file=sys.stderr)
+    written = run.write(files)
+    for path in written:
         print(f"wrote {path}")
     return 0

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 import re
 import time
 import tomllib
@@ -292,7 +293,7 @@ def synthesize(
         doc["tool"]["compensation"] = tool_scope  # --compensate-with
     kind = kind or default_set(nominal)
     texts = {lb.name: lb.urdf_path.read_text(encoding="utf-8") for lb in nominal.limbs if lb.urdf_path}
-    count = int(np.prod([len(v.values) for v in varies])) if varies else 0
+    count = math.prod(len(v.values) for v in varies) if varies else 0  # Python ints: no overflow
     if count > MAX_VARIANTS:
         raise SweepSpecError(
             " ".join(v.key for v in varies), f"{count} variants > {MAX_VARIANTS}; use fewer values"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import reprlib
 import sys
 import tempfile
 import warnings
@@ -19,6 +20,19 @@ import pinocchio as pin
 from pkmtol.exceptions import MechanismFormatError, PkmtolWarning, URDFError
 from pkmtol.model.urdf_xml import check_urdf_tree, resolve_meshes
 from pkmtol.values import MAX_LENGTH_M
+
+_QUOTE = reprlib.Repr()
+_QUOTE.maxlevel, _QUOTE.maxlist, _QUOTE.maxtuple, _QUOTE.maxdict = 3, 8, 8, 8
+_QUOTE.maxstring, _QUOTE.maxother, _QUOTE.maxlong = 60, 60, 40
+
+
+def quoted(value: object, limit: int = 120) -> str:
+    """``repr(value)`` for a message: at most ``limit`` characters, nested lists cut.
+
+    A YAML alias bomb of 9⁹ shared items then quotes in microseconds instead of 2 GB.
+    """
+    text = _QUOTE.repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def read_text(path: Path, fail: Callable[[str], Exception]) -> str:
@@ -140,7 +154,9 @@ def check_finite(path: Path, doc: Any, where: str = "") -> None:
         for i, value in enumerate(doc):
             check_finite(path, value, f"{where}[{i}]")
     elif isinstance(doc, float) and not math.isfinite(doc):
-        raise MechanismFormatError(path, where, f"{doc!r} is not a finite number; write the number itself")
+        raise MechanismFormatError(
+            path, where, f"{quoted(doc)} is not a finite number; write the number itself"
+        )
 
 
 class TomlReader:
@@ -170,9 +186,9 @@ class TomlReader:
         tt = types if isinstance(types, tuple) else (types,)
         if isinstance(node, bool) or not isinstance(node, tt):
             names = " or ".join(t.__name__ for t in tt)
-            self.fail(key, f"expected {names}, got {type(node).__name__} {node!r}")
+            self.fail(key, f"expected {names}, got {type(node).__name__} {quoted(node)}")
         if isinstance(node, float) and not math.isfinite(node):
-            self.fail(key, f"expected a finite number, got {node!r}")
+            self.fail(key, f"expected a finite number, got {quoted(node)}")
         return node
 
     def lengths(self, key: str, n: int | None = None, default: Any = _MISSING) -> np.ndarray:
@@ -180,7 +196,9 @@ class TomlReader:
         arr = self.array(key, default) if n is None else self.vector(key, n, default)
         if arr.size and float(np.max(np.abs(arr))) > MAX_LENGTH_M:
             self.fail(
-                key, f"a length beyond ±{MAX_LENGTH_M:g} m, got {arr.tolist()!r}; is the unit right (metres)?"
+                key,
+                f"a length beyond ±{MAX_LENGTH_M:g} m, got {quoted(arr.tolist())}; "
+                "is the unit right (metres)?",
             )
         return arr
 
@@ -188,14 +206,14 @@ class TomlReader:
         """Read a (nested) list of finite numbers as a float array; fail naming ``key`` if it is not."""
         v = self.get(key, list, default)
         if _has_non_number(v):
-            self.fail(key, f"expected a list of numbers (rows of equal length), got {v!r}")
+            self.fail(key, f"expected a list of numbers (rows of equal length), got {quoted(v)}")
         try:
             arr = np.asarray(v, dtype=float)
         except (TypeError, ValueError, OverflowError):
-            self.fail(key, f"expected a list of numbers (rows of equal length), got {v!r}")
+            self.fail(key, f"expected a list of numbers (rows of equal length), got {quoted(v)}")
             raise
         if not np.all(np.isfinite(arr)):
-            self.fail(key, f"every number must be finite (no nan or inf), got {v!r}")
+            self.fail(key, f"every number must be finite (no nan or inf), got {quoted(v)}")
         return arr
 
     def vector(self, key: str, n: int, default: Any = _MISSING) -> np.ndarray:
@@ -203,14 +221,14 @@ class TomlReader:
         v = self.get(key, list, default)
         arr = self.array(key, default) if isinstance(v, list) else np.zeros(0)
         if arr.shape != (n,):
-            self.fail(key, f"expected a list of {n} numbers, got {v!r}")
+            self.fail(key, f"expected a list of {n} numbers, got {quoted(v)}")
         return arr
 
     def strings(self, key: str, default: Any = _MISSING, what: str = "strings") -> list[str]:
         """Read a list of strings; fail naming ``key`` (and ``what`` they are) if an entry is not one."""
         v = self.get(key, list, default)
         if v is not None and not all(isinstance(x, str) for x in v):
-            self.fail(key, f"expected a list of {what}, got {v!r}")
+            self.fail(key, f"expected a list of {what}, got {quoted(v)}")
         return v  # type: ignore[no-any-return]
 
     def joint_values(self, key: str, default: Any = _MISSING) -> dict[str, float] | None:
@@ -220,7 +238,7 @@ class TomlReader:
             return None
         for jname, value in table.items():
             if isinstance(value, bool) or not isinstance(value, int | float):
-                self.fail(f"{key}.{jname}", f"expected a number (rad or m), got {value!r}")
+                self.fail(f"{key}.{jname}", f"expected a number (rad or m), got {quoted(value)}")
         return {k: float(v) for k, v in table.items()}
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pkmtol.exceptions import MechanismFormatError
-from pkmtol.model.reading import TomlReader, read_text
+from pkmtol.model.reading import TomlReader, quoted, read_text
 
 #: Sidecar file names tried next to ``<stem>.urdf`` when none is given.
 SIDECAR_SUFFIXES = (".yaml", ".yml", ".toml")
@@ -99,7 +99,7 @@ def sidecar_from_dict(doc: Mapping[str, Any], path: Path | str | None = None) ->
     loops: list[tuple[str, str]] = []
     for k, pair in enumerate(r.get("closed_loop", list, default=[])):
         if not (isinstance(pair, list | tuple) and len(pair) == 2 and all(isinstance(x, str) for x in pair)):
-            r.fail(f"closed_loop[{k}]", f"expected a pair of frame names, got {pair!r}")
+            r.fail(f"closed_loop[{k}]", f"expected a pair of frame names, got {quoted(pair)}")
         loops.append((pair[0], pair[1]))
     types = _str_list(r, "type", default=["6d"] * len(loops))
     if len(types) != len(loops):
@@ -107,7 +107,7 @@ def sidecar_from_dict(doc: Mapping[str, Any], path: Path | str | None = None) ->
     types = [t.lower() for t in types]
     for k, t in enumerate(types):
         if t not in ("6d", "3d"):
-            r.fail(f"type[{k}]", f"unknown loop type {t!r}; use '6d' or '3d'")
+            r.fail(f"type[{k}]", f"unknown loop type {quoted(t)}; use '6d' or '3d'")
     motors = _str_list(r, "name_mot", default=None)
     names = _str_list(r, "joint_name", default=[])
     jtypes = _str_list(r, "joint_type", default=[])
@@ -125,7 +125,7 @@ def sidecar_from_dict(doc: Mapping[str, Any], path: Path | str | None = None) ->
 def _str_list(r: TomlReader, key: str, default: Any) -> Any:
     v = r.get(key, list, default=default)
     if v is not None and not all(isinstance(x, str) for x in v):
-        r.fail(key, f"expected a list of strings, got {v!r}")
+        r.fail(key, f"expected a list of strings, got {quoted(v)}")
     return v
 
 
@@ -138,6 +138,10 @@ def _load_yaml(path: Path, text: str) -> Any:
         return yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise MechanismFormatError(path, "-", f"not valid YAML: {err}") from err
+    except RecursionError as err:  # issue 25: a document nested thousands deep
+        raise MechanismFormatError(
+            path, "-", "nested too deeply to read (a list or map thousands deep)"
+        ) from err
 
 
 def _load_literal_yaml(path: Path, text: str) -> dict[str, Any]:

@@ -11,9 +11,12 @@
   renames them into place. If any write fails, the temporary files are removed and the folder
   is as it was;
 * **no mixed runs**: the files of the previous run that this run does not write again are removed
-  — those its manifest lists, and any of pkmtol's own run files (:data:`RUN_FILES`) — so that,
-  for example, a run with ``--no-figures`` leaves no figures of an earlier run. Other files in
-  the folder are left alone;
+  — those its manifest lists, and nothing else: a file no manifest says pkmtol wrote (a user's
+  own ``tolerances.pdf``) is left alone, even under one of pkmtol's names; a run that writes
+  a file of that name replaces it;
+* **no clobbering within a run**: a file outside the folder (``--html``, ``--report``,
+  ``--plan``) that is one of the run's own files, or another outside file, is refused before
+  anything is written;
 * **a manifest**: :data:`MANIFEST` (JSON) lists the files of the run, written last. A folder
   without it (or whose manifest lists a file that is missing) holds no complete run.
 """
@@ -29,7 +32,7 @@ from types import TracebackType
 from typing import Any
 
 from pkmtol.exceptions import OutputError, OutputLockedError
-from pkmtol.files import stage, write_atomic
+from pkmtol.files import replace, signals_deferred, stage, write_atomic
 
 #: The manifest of a run: ``{"pkmtol_run": 1, "files": [...], "outside": [...]}``.
 MANIFEST = "pkmtol-run.json"
@@ -90,6 +93,7 @@ class RunFolder:
                 raise OutputError(self.path / name, "a run file must be a plain file name in the folder")
         targets = [(self.path / name, data) for name, data in files.items()]
         targets += [(Path(p), data) for p, data in (outside or {}).items()]
+        check_distinct([self.path / MANIFEST] + [path for path, _ in targets])
         staged: list[tuple[Path, str]] = []
         try:
             for path, data in targets:
@@ -100,24 +104,25 @@ class RunFolder:
                     os.unlink(tmp)
             raise
         previous = self._previous_files()
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(self.path / MANIFEST)  # from here until the new manifest: no complete run
-        for path, tmp in staged:
-            os.replace(tmp, path)
-        for name in sorted(previous - set(files)):
-            with contextlib.suppress(OSError):
-                (self.path / name).unlink()
         manifest = {
             "pkmtol_run": 1,
             "files": list(files),
             "outside": [str(Path(p)) for p in (outside or {})],
         }
-        write_atomic(self.path / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
+        with signals_deferred():  # a Ctrl-C lands before the first rename or after the manifest
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.path / MANIFEST)  # from here until the new manifest: no complete run
+            for path, tmp in staged:
+                replace(tmp, path)
+            for name in sorted(previous - set(files)):
+                with contextlib.suppress(OSError):
+                    (self.path / name).unlink()
+            write_atomic(self.path / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
         return [path for path, _ in targets]
 
     def _previous_files(self) -> set[str]:
-        """The run files of the folder's previous run: those its manifest lists, and pkmtol's own names."""
-        names = {n for n in RUN_FILES if (self.path / n).is_file()}
+        """The run files of the folder's previous run: those its manifest lists (issue 25: only those)."""
+        names: set[str] = set()
         try:
             doc: Any = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
             listed = doc.get("files", []) if isinstance(doc, dict) else []
@@ -127,6 +132,23 @@ class RunFolder:
             if isinstance(name, str) and Path(name).name == name and name not in ("", ".", "..", MANIFEST):
                 names.add(name)
         return names
+
+
+def check_distinct(paths: list[Path]) -> None:
+    """Refuse two outputs of one run that are the same file (``--html`` at ``allocation.json``).
+
+    Raises:
+        OutputError: names both, before anything is written.
+    """
+    seen: dict[str, Path] = {}
+    for path in paths:
+        key = os.path.realpath(path)
+        if key in seen:
+            other = seen[key]
+            raise OutputError(
+                path, f"is also {other} of the same run: one would overwrite the other; give another path"
+            )
+        seen[key] = path
 
 
 def _lock(folder: Path) -> int:
