@@ -17,6 +17,7 @@ import numpy as np
 
 from pkmtol.error_model.compensation import skew_batch
 from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.tool_sweep import ToolSweep
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,6 +37,10 @@ class PoseMaps:
         stations: Shape (m,): the instrument station of each pose (a ballbar circle, a probed
             sphere; None: all 0).
         groups: Shape (m,): poses a plan takes together (a ballbar circle; None: each its own).
+        task_rows: Shape (m, r, 6): the rows of the task error in the twist at the reference
+            point, for a hybrid machine (the TCP position and the tool axis across its target:
+            ``ToolSeparation.task_rows``; the "platform" of these maps is then the TCP frame);
+            None: P's position through :attr:`task_projection`.
     """
 
     points_m: np.ndarray
@@ -48,6 +53,7 @@ class PoseMaps:
     task_projection: np.ndarray = field(default_factory=lambda: np.eye(3))
     stations: np.ndarray | None = None
     groups: np.ndarray | None = None
+    task_rows: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.points_m.shape[0])
@@ -66,6 +72,7 @@ class PoseMaps:
             task_projection=self.task_projection,
             stations=None if self.stations is None else self.stations[idx],
             groups=None if self.groups is None else self.groups[idx],
+            task_rows=None if self.task_rows is None else self.task_rows[idx],
         )
 
     @property
@@ -118,6 +125,19 @@ class PoseMaps:
         rows = self.task_projection @ self.point_rows(self.reference_point_m[None, :])
         return np.einsum("kij,kjf->kif", rows, self.actuation)
 
+    def task_maps(self) -> tuple[np.ndarray, np.ndarray]:
+        """The task error per unit parameter (m, r, n) and per unit command change (m, r, f).
+
+        P's position (:meth:`position_map`, :meth:`position_actuation`), or a hybrid's task
+        (:attr:`task_rows`: the TCP position and the tool axis) at held commands.
+        """
+        if self.task_rows is None:
+            return self.position_map(), self.position_actuation()
+        return (
+            np.einsum("kra,kan->krn", self.task_rows, self.twist),
+            np.einsum("kra,kaf->krf", self.task_rows, self.actuation),
+        )
+
 
 def pose_maps(
     grid: Sweep,
@@ -134,6 +154,8 @@ def pose_maps(
         reference_point_m: P in the platform frame, shape (3,) [m].
         task_projection: ``Mechanism.task_projection`` (default ``I``: the position task).
     """
+    if isinstance(grid, ToolSweep):
+        return _tool_pose_maps(grid, actuated_idx)
     seps = grid.separations
     q = np.array([p.q_all for p in grid.poses])
     act = [s.actuation_map for s in seps]
@@ -148,4 +170,29 @@ def pose_maps(
         actuation=np.array(act),
         reference_point_m=np.asarray(reference_point_m, dtype=float),
         task_projection=np.eye(3) if task_projection is None else np.asarray(task_projection, dtype=float),
+    )
+
+
+def _tool_pose_maps(grid: ToolSweep, actuated_idx: np.ndarray) -> PoseMaps:
+    """A hybrid's maps: the TCP frame as the "platform", the whole machine's joints and actuators.
+
+    ``q`` is the module's joints then the tool chain's, ``commands`` the module's actuators
+    (``actuated_idx``) then the wrist's; ``twist`` and ``actuation`` are the TCP's
+    (``ToolSeparation.twist_map`` A and ``actuation_map`` B); the task rows are the TCP position
+    and, with a free wrist, the tool axis across its target (a locked wrist: the position only).
+    """
+    hp = grid.hybrid_poses
+    qm = np.array([h.module.q_all for h in hp])
+    qt = np.array([h.q_tool for h in hp])
+    act = np.asarray(actuated_idx, dtype=int)
+    rows = np.array([s.task_rows for s in grid.separations])  # type: ignore[attr-defined]
+    return PoseMaps(
+        points_m=np.array([h.tcp_m for h in hp]),
+        rotations=np.array([h.oMt.rotation for h in hp]),
+        q=np.hstack([qm, qt]),
+        commands=np.hstack([qm[:, act], qt[:, list(grid.tool_actuated)]]),
+        twist=np.array([s.twist_map for s in grid.separations]),
+        actuation=np.array([s.actuation_map for s in grid.separations]),
+        reference_point_m=np.zeros(3),
+        task_rows=rows if grid.axes is not None else rows[:, :3],
     )

@@ -20,8 +20,8 @@ from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report,
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
 from pkmtol.design.job import DesignOptions, allocate
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.task import hybrid_calibration_refusal
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.task import machine_parameter_set
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
@@ -182,8 +182,6 @@ def _instrument_data(
 
 def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
-    if mech.tool is not None:
-        raise InvalidRequestError(hybrid_calibration_refusal(mech.name))
     for name, value, low in (
         ("--machines", args.machines, 1),
         ("--holdout", args.holdout, 1),
@@ -197,7 +195,7 @@ def _run(args: argparse.Namespace) -> int:
         raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
-    pset = parameter_set(mech, args.pset or default_set(mech))
+    pset = machine_parameter_set(mech, args.pset)  # a hybrid's: the module's, then the tool chain's
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"
     check_output_folder(out)
     if args.plan is not None:

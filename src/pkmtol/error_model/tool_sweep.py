@@ -34,11 +34,13 @@ class ToolSweep(Sweep):
         axes: Shape (m, 3): the target tool axes (None for a locked wrist).
         hybrid_poses: The machine's poses.
         scope: ``machine`` or ``module`` (:mod:`pkmtol.error_model.tool_chain`).
+        tool_actuated: The actuated joints of the tool chain (indices into its q).
     """
 
     axes: np.ndarray | None = None
     hybrid_poses: tuple[HybridPose, ...] = ()
     scope: str = "machine"
+    tool_actuated: tuple[int, ...] = ()
 
 
 def tool_task_grid(mechanism: Mechanism) -> tuple[np.ndarray, np.ndarray | None]:
@@ -121,6 +123,7 @@ def hybrid_sweep(
         axes=None if axes is None else np.asarray(axes, dtype=float).reshape(m, 3),
         hybrid_poses=tuple(poses),
         scope=scope,
+        tool_actuated=tuple(hc.actuated),
     )
 
 

@@ -1,0 +1,160 @@
+"""A hybrid machine with given errors for the calibration: the module and the tool chain, exact.
+
+The calibration's :class:`~pkmtol.calibration.machine.Machine` of a mechanism with a ``[tool]``
+chain (``Machine(...)`` returns this class for it). Its joints are the module's then the tool
+chain's (``q`` of :func:`pkmtol.calibration.maps.pose_maps` for a hybrid), its commands the
+module's actuators then the wrist's, and its "platform" is the TCP frame: ``forward_many`` gives
+the TCP's placement, ``inverse_many`` the commands that put the TCP at a target with the tool
+along the target axis (the axis of the nominal machine at the guess, so the controller aims at
+the pose the task asked for). Errors: the module's part of ``delta`` perturbs the limbs, the tool
+part the tool chain's placements and zero offsets (as :mod:`pkmtol.error_model.tool_exact`).
+Commands are readings: a joint's actual value is its reading plus its zero offset; a locked wrist
+joint sits at its set value (``Tool.home``) plus its offset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.tool_chain import HybridParameterSet
+from pkmtol.exceptions import InvalidRequestError, KinematicsError
+from pkmtol.kinematics.closed_chain import ClosedChain, Pose
+from pkmtol.kinematics.hybrid import HybridChain, HybridPose
+from pkmtol.kinematics.perturbation import perturbed_limb_models
+from pkmtol.kinematics.tool_chain import ToolKinematics, perturbed_tool_model, split_tool_eps
+from pkmtol.model.mechanism import Mechanism
+
+#: The nominal solvers of the mechanisms seen (the controller's target axes come from them).
+_NOMINAL: dict[int, tuple[Mechanism, HybridChain]] = {}
+
+
+@dataclass(frozen=True, eq=False)
+class HybridSolutions:
+    """Solved poses of a hybrid machine (``B`` problems; the fields :class:`Solutions` has that the calibration reads).
+
+    Attributes:
+        q: Shape (B, N + nq_t): actual joint values, the module's then the tool chain's.
+        rotation: Shape (B, 3, 3): the TCP frame's orientation in K.
+        translation: Shape (B, 3): the TCP in K [m].
+        errors: Per problem, the error that stopped it (None: solved).
+    """
+
+    q: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    errors: tuple[KinematicsError | None, ...]
+
+    @property
+    def p_m(self) -> np.ndarray:
+        """Shape (B, 3): the TCP in K [m] (the task point)."""
+        return self.translation
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Shape (B,): which problems were solved."""
+        return np.array([e is None for e in self.errors], dtype=bool)
+
+
+class HybridMachine:
+    """The hybrid machine perturbed by ``delta`` (n,) of a :class:`HybridParameterSet`.
+
+    Raises:
+        InvalidRequestError: ``pset`` lacks the tool chain's parameters.
+    """
+
+    def __init__(self, mechanism: Mechanism, pset: ParameterSet, delta: np.ndarray) -> None:
+        if mechanism.tool is None or not isinstance(pset, HybridParameterSet):
+            raise InvalidRequestError(
+                f"'{mechanism.name}': a hybrid machine's calibration needs its parameter set with the "
+                "tool chain's parameters (pkmtol.error_model.task.machine_parameter_set)"
+            )
+        self.mechanism = mechanism
+        self.pset = pset
+        self.tool = mechanism.tool
+        self.delta = np.asarray(delta, dtype=float).copy()
+        eps, module_offsets = pset.module_set().perturbation(self.delta[: pset.module_count], mechanism)
+        t_eps, tool_offsets = split_tool_eps(pset.tool_raw(self.delta), self.tool)
+        module = ClosedChain(mechanism, models=perturbed_limb_models(mechanism, eps), check_limits=False)
+        tool_model = perturbed_tool_model(self.tool, t_eps)
+        self.chain = HybridChain(mechanism, module, tool_model, check_limits=False)
+        self.kinematics = ToolKinematics(self.tool, tool_model)
+        self.nq_module = int(module_offsets.size)
+        self.module_actuated = np.asarray(module.actuated_idx, dtype=int)
+        self.tool_actuated = list(self.tool.actuated)
+        self.offsets = np.concatenate([module_offsets, tool_offsets])
+        self.actuated_idx = np.concatenate(
+            [self.module_actuated, self.nq_module + np.asarray(self.tool_actuated, dtype=int)]
+        )
+
+    def forward_many(self, commands: np.ndarray, q0: np.ndarray) -> HybridSolutions:
+        """The TCP placements at readings ``commands`` (B, f + w), guesses ``q0`` (B, N + nq_t).
+
+        A problem the module cannot solve has its error in ``errors`` (nothing raised).
+        """
+        u = np.atleast_2d(np.asarray(commands, dtype=float))
+        guess = np.atleast_2d(np.asarray(q0, dtype=float))
+        f, n0 = self.module_actuated.size, self.nq_module
+        offsets = np.broadcast_to(self.offsets[:n0], (len(u), n0))
+        mod = self.chain.batch.forward(u[:, :f], guess[:, :n0], offsets)
+        qt = np.tile(self.tool.home, (len(u), 1))
+        qt[:, self.tool_actuated] = u[:, f:]
+        qt = qt + self.offsets[n0:]
+        rt, pt, _ = self.kinematics.frames(qt)
+        rot = np.einsum("bij,bjk->bik", mod.rotation, rt)
+        pos = mod.translation + np.einsum("bij,bj->bi", mod.rotation, pt)
+        return HybridSolutions(q=np.hstack([mod.q, qt]), rotation=rot, translation=pos, errors=mod.errors)
+
+    def inverse_many(self, targets_m: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, HybridSolutions]:
+        """The readings (B, f + w) that put this machine's TCP at ``targets_m`` (B, 3), tool along the target axis.
+
+        ``q0`` (B, N + nq_t) are nominal joint values at the targets: the nominal machine's tool
+        axis there is the target axis (the spin about it is free), and its poses start the solve.
+        Rows of unsolved problems are NaN; their errors are in the solutions.
+        """
+        targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
+        guesses = nominal_poses(self.mechanism, np.atleast_2d(np.asarray(q0, dtype=float)))
+        axes = None if self.mechanism.tool_directions is None else np.array([g.axis for g in guesses])
+        solved = self.chain.inverse_many(targets, axes, guesses)
+        b, n0 = len(targets), self.nq_module
+        q = np.full((b, n0 + self.tool.nq), np.nan)
+        rot = np.full((b, 3, 3), np.nan)
+        pos = np.full((b, 3), np.nan)
+        errors: list[KinematicsError | None] = []
+        for k, s in enumerate(solved):
+            if isinstance(s, HybridPose):
+                q[k] = np.concatenate([s.module.q_all, s.q_tool])
+                rot[k], pos[k] = s.oMt.rotation, s.oMt.translation
+                errors.append(None)
+            else:
+                errors.append(s)
+        sols = HybridSolutions(q=q, rotation=rot, translation=pos, errors=tuple(errors))
+        commands = q[:, self.actuated_idx] - self.offsets[self.actuated_idx]
+        return np.where(sols.ok[:, None], commands, np.nan), sols
+
+
+def nominal_chain(mechanism: Mechanism) -> HybridChain:
+    """The nominal machine's solver (kept per mechanism)."""
+    key = id(mechanism)
+    if key not in _NOMINAL or _NOMINAL[key][0] is not mechanism:
+        _NOMINAL[key] = (mechanism, HybridChain(mechanism))
+    return _NOMINAL[key][1]
+
+
+def nominal_poses(mechanism: Mechanism, q: np.ndarray) -> list[HybridPose]:
+    """The nominal machine's poses at joint values ``q`` (B, N + nq_t) (assembled, not solved)."""
+    hc = nominal_chain(mechanism)
+    mod = hc.chain
+    n0 = mod.offsets[-1]
+    out = []
+    for row in np.atleast_2d(q):
+        qm = row[:n0]
+        oMp = mod.platform_placements(qm)[0]
+        parts = tuple(qm[mod.offsets[i] : mod.offsets[i + 1]].copy() for i in range(len(mod.models)))
+        pose = Pose(
+            q=parts, oMp=oMp, p_m=np.asarray(oMp.act(mod.p_ref), dtype=float), residual=0.0, condition=0.0
+        )
+        out.append(hc.evaluate(pose, row[n0:]))
+    return out

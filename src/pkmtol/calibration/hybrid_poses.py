@@ -1,0 +1,143 @@
+"""A hybrid machine's calibration poses: the candidate pool and the held-out poses over its task space.
+
+The task space of a hybrid is TCP points × tool axes (:func:`pkmtol.error_model.tool_sweep.tool_task_grid`).
+The candidate pool is that grid plus ``settings.candidates`` random targets (TCP uniform in the
+task space, axis uniform over the cone), the held-out poses ``count`` random targets; each is
+solved from its nearest grid pose, unreachable or singular draws are skipped, and the solved poses
+are separated by the whole machine's error model (:func:`hybrid_sweep`) so that
+:func:`pkmtol.calibration.maps.pose_maps` gives their maps at the TCP. The instrument is a tracker
+on the TCP (``tracker``, or ``tracker-multi`` with targets in the TCP frame).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pkmtol.calibration.maps import PoseMaps, pose_maps
+from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.sweep import Sweep
+from pkmtol.error_model.task import grid_sweep, tool_scope
+from pkmtol.error_model.tool_chain import HybridParameterSet
+from pkmtol.error_model.tool_sweep import ToolSweep, hybrid_sweep, nearest_poses, tool_task_sample
+from pkmtol.exceptions import InvalidRequestError
+from pkmtol.kinematics.closed_chain import ClosedChain
+from pkmtol.kinematics.hybrid import HybridChain, HybridPose
+from pkmtol.model.mechanism import Mechanism
+
+#: The instruments a hybrid's calibration models (a tracker's targets on the TCP frame).
+INSTRUMENTS = ("tracker", "tracker-multi")
+
+
+def check_instrument(mechanism: Mechanism, settings: CalibrationSettings) -> None:
+    """Refuse an instrument the hybrid's calibration does not model.
+
+    Raises:
+        InvalidRequestError: not a tracker (a ballbar's or a probe's stations are the module's).
+    """
+    if settings.instrument not in INSTRUMENTS:
+        raise InvalidRequestError(
+            f"'{mechanism.name}' is a hybrid machine: its calibration models a laser tracker whose "
+            f"targets sit on the TCP frame (instrument = {' or '.join(INSTRUMENTS)}), not a "
+            f"{settings.instrument}; set [calibration] instrument or --instrument to tracker"
+        )
+
+
+def _tool_grid(
+    mechanism: Mechanism, pset: ParameterSet, chain: ClosedChain | None, grid: Sweep | None
+) -> ToolSweep:
+    sw = grid if grid is not None else grid_sweep(mechanism, pset, chain)
+    if not isinstance(sw, ToolSweep):
+        raise InvalidRequestError(
+            f"'{mechanism.name}': a hybrid machine's poses need its grid sweep (grid_sweep)"
+        )
+    return sw
+
+
+def solved_targets(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    grid: ToolSweep,
+    tcp_m: np.ndarray,
+    axes: np.ndarray | None,
+    chain: ClosedChain | None = None,
+) -> tuple[ToolSweep | None, int]:
+    """The whole machine's sweep at the reachable targets among ``tcp_m``/``axes``, and how many were skipped.
+
+    Each target starts from its nearest grid pose; a target that does not solve (out of reach, a
+    wrist limit, a singular pose) is skipped. None when none solves.
+    """
+    assert isinstance(pset, HybridParameterSet)
+    hc = HybridChain(mechanism, chain)
+    solved = hc.inverse_many(tcp_m, axes, nearest_poses(grid, tcp_m, axes))
+    keep = np.array([i for i, s in enumerate(solved) if isinstance(s, HybridPose)], dtype=int)
+    skipped = len(solved) - keep.size
+    if not keep.size:
+        return None, skipped
+    guesses = [s for s in solved if isinstance(s, HybridPose)]
+    sw = hybrid_sweep(
+        mechanism,
+        pset,
+        np.asarray(tcp_m)[keep],
+        None if axes is None else np.asarray(axes)[keep],
+        hc,
+        tool_scope(mechanism),
+        guesses=guesses,
+    )
+    return sw, skipped
+
+
+def hybrid_pool(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    settings: CalibrationSettings,
+    chain: ClosedChain | None = None,
+    grid: Sweep | None = None,
+) -> PoseMaps:
+    """The candidate poses of a hybrid's plan: the task grid and ``settings.candidates`` random targets.
+
+    Raises:
+        InvalidRequestError: an instrument other than a tracker.
+    """
+    check_instrument(mechanism, settings)
+    sw = _tool_grid(mechanism, pset, chain, grid)
+    act = ClosedChain(mechanism).actuated_idx if chain is None else chain.actuated_idx
+    if settings.candidates == 0:
+        return pose_maps(sw, act, np.zeros(3))
+    tcp, axes = tool_task_sample(mechanism, np.random.default_rng(settings.seed), settings.candidates)
+    extra, _ = solved_targets(mechanism, pset, sw, tcp, axes, chain)
+    if extra is None:
+        return pose_maps(sw, act, np.zeros(3))
+    both_axes = None if sw.axes is None or extra.axes is None else np.vstack([sw.axes, extra.axes])
+    both = hybrid_sweep(
+        mechanism,
+        pset,  # type: ignore[arg-type]
+        np.vstack([sw.points_m, extra.points_m]),
+        both_axes,
+        HybridChain(mechanism, chain),
+        tool_scope(mechanism),
+        guesses=list(sw.hybrid_poses) + list(extra.hybrid_poses),
+    )
+    return pose_maps(both, act, np.zeros(3))
+
+
+def hybrid_holdout_sweep(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    count: int,
+    rng: np.random.Generator,
+    chain: ClosedChain | None = None,
+) -> tuple[ToolSweep, int]:
+    """``count`` random targets of the hybrid's task (TCP × axis), solved and separated; and the skipped draws.
+
+    Raises:
+        InvalidRequestError: not one draw is reachable.
+    """
+    grid = _tool_grid(mechanism, pset, chain, None)
+    tcp, axes = tool_task_sample(mechanism, rng, count)
+    sw, skipped = solved_targets(mechanism, pset, grid, tcp, axes, chain)
+    if sw is None:
+        raise InvalidRequestError(
+            f"'{mechanism.name}': no random target of the TCP's task space is reachable; check the task space"
+        )
+    return sw, skipped
