@@ -33,7 +33,7 @@ _NOMINAL: dict[int, tuple[Mechanism, HybridChain]] = {}
 
 @dataclass(frozen=True, eq=False)
 class HybridSolutions:
-    """Solved poses of a hybrid machine (``B`` problems; the fields :class:`Solutions` has that the calibration reads).
+    """Solved poses of a hybrid machine, ``B`` problems (the fields of ``Solutions`` the calibration reads).
 
     Attributes:
         q: Shape (B, N + nq_t): actual joint values, the module's then the tool chain's.
@@ -108,7 +108,7 @@ class HybridMachine:
         return HybridSolutions(q=np.hstack([mod.q, qt]), rotation=rot, translation=pos, errors=mod.errors)
 
     def inverse_many(self, targets_m: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, HybridSolutions]:
-        """The readings (B, f + w) that put this machine's TCP at ``targets_m`` (B, 3), tool along the target axis.
+        """Readings (B, f + w) that put the TCP at ``targets_m`` (B, 3), the tool along the target axis.
 
         ``q0`` (B, N + nq_t) are nominal joint values at the targets: the nominal machine's tool
         axis there is the target axis (the spin about it is free), and its poses start the solve.

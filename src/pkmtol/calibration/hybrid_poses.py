@@ -128,7 +128,7 @@ def hybrid_holdout_sweep(
     rng: np.random.Generator,
     chain: ClosedChain | None = None,
 ) -> tuple[ToolSweep, int]:
-    """``count`` random targets of the hybrid's task (TCP × axis), solved and separated; and the skipped draws.
+    """``count`` random targets of the task (TCP × axis), solved and separated; and the draws skipped.
 
     Raises:
         InvalidRequestError: not one draw is reachable.

@@ -9,10 +9,10 @@ true machine then moves by ``$_k = T_k δ + A_k Δu_k``:
 
     $_k = (T_k − A_k C_k⁺ J_k G H) δ − A_k C_k⁺ J_k G ν
 
-(a hybrid: ``J_k``, ``C_k`` are its task's rows, the TCP position and the tool axis, and the
-twist is the TCP's), whose position rows at P are DESIGN.md's ``L_k = J_k − J_k G H`` and ``N_k = −J_k G`` (when the
+whose position rows at P are DESIGN.md's ``L_k = J_k − J_k G H`` and ``N_k = −J_k G`` (when the
 actuators move P in every direction, ``C_k C_k⁺ = I``), and whose rotation rows are what the
-calibration leaves in the platform's orientation.
+calibration leaves in the platform's orientation. A hybrid machine: ``J_k`` and ``C_k`` are the
+rows of its task (the TCP position and the tool axis across its target) and the twist is the TCP's.
 """
 
 from __future__ import annotations
