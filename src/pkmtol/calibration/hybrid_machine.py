@@ -115,10 +115,23 @@ class HybridMachine:
         Rows of unsolved problems are NaN; their errors are in the solutions.
         """
         targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
-        guesses = nominal_poses(self.mechanism, np.atleast_2d(np.asarray(q0, dtype=float)))
-        axes = None if self.mechanism.tool_directions is None else np.array([g.axis for g in guesses])
+        q_nominal = np.atleast_2d(np.asarray(q0, dtype=float))
+        nominal = nominal_poses(self.mechanism, q_nominal)
+        axes = None if self.mechanism.tool_directions is None else np.array([g.axis for g in nominal])
+        # the guesses: this machine's module solved at the nominal P, the wrist at its nominal joints
+        # (a guess the solver takes as evaluated, so it must be this machine's own configuration)
+        n0 = self.nq_module
+        mod = self.chain.batch.inverse(np.array([g.module.p_m for g in nominal]), q_nominal[:, :n0])
+        guesses, failed = [], {}
+        for k, g in enumerate(nominal):
+            if mod.errors[k] is not None:
+                failed[k] = mod.errors[k]
+                guesses.append(g)
+                continue
+            guesses.append(self.chain.evaluate(assembled(self.chain.chain, mod.q[k]), q_nominal[k, n0:]))
         solved = self.chain.inverse_many(targets, axes, guesses)
-        b, n0 = len(targets), self.nq_module
+        solved = [failed.get(k, s) for k, s in enumerate(solved)]
+        b = len(targets)
         q = np.full((b, n0 + self.tool.nq), np.nan)
         rot = np.full((b, 3, 3), np.nan)
         pos = np.full((b, 3), np.nan)
@@ -143,18 +156,17 @@ def nominal_chain(mechanism: Mechanism) -> HybridChain:
     return _NOMINAL[key][1]
 
 
+def assembled(chain: ClosedChain, q: np.ndarray) -> Pose:
+    """The module's pose at joint values ``q`` (N,) of ``chain``'s models (forward kinematics, not solved)."""
+    oMp = chain.platform_placements(q)[0]
+    parts = tuple(q[chain.offsets[i] : chain.offsets[i + 1]].copy() for i in range(len(chain.models)))
+    return Pose(
+        q=parts, oMp=oMp, p_m=np.asarray(oMp.act(chain.p_ref), dtype=float), residual=0.0, condition=0.0
+    )
+
+
 def nominal_poses(mechanism: Mechanism, q: np.ndarray) -> list[HybridPose]:
     """The nominal machine's poses at joint values ``q`` (B, N + nq_t) (assembled, not solved)."""
     hc = nominal_chain(mechanism)
-    mod = hc.chain
-    n0 = mod.offsets[-1]
-    out = []
-    for row in np.atleast_2d(q):
-        qm = row[:n0]
-        oMp = mod.platform_placements(qm)[0]
-        parts = tuple(qm[mod.offsets[i] : mod.offsets[i + 1]].copy() for i in range(len(mod.models)))
-        pose = Pose(
-            q=parts, oMp=oMp, p_m=np.asarray(oMp.act(mod.p_ref), dtype=float), residual=0.0, condition=0.0
-        )
-        out.append(hc.evaluate(pose, row[n0:]))
-    return out
+    n0 = int(hc.chain.offsets[-1])
+    return [hc.evaluate(assembled(hc.chain, row[:n0]), row[n0:]) for row in np.atleast_2d(q)]
