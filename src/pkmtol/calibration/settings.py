@@ -218,11 +218,16 @@ class CalibrationSettings:
     def targets(self, mechanism: Mechanism) -> np.ndarray:
         """The tracker targets (t, 3) in the platform frame [m]: ``targets_m``, or P alone.
 
-        ``tracker-multi`` without ``targets_m``: P and :data:`MULTI_OFFSETS_M` from it.
+        ``tracker-multi`` without ``targets_m``: P and :data:`MULTI_OFFSETS_M` from it. A hybrid
+        machine (a ``[tool]`` chain): the frame is the TCP frame, and the default target the TCP.
         """
         if len(self.targets_m):
             return np.asarray(self.targets_m, dtype=float).reshape(-1, 3)
-        p = np.asarray(mechanism.reference_point_m, dtype=float)
+        p = (
+            np.zeros(3)
+            if mechanism.tool is not None
+            else np.asarray(mechanism.reference_point_m, dtype=float)
+        )
         if self.instrument == "tracker-multi":
             return p[None, :] + np.asarray(MULTI_OFFSETS_M)
         return p[None, :]
