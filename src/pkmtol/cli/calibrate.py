@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_poses import check_instrument
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
@@ -194,6 +195,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.plan_per_machine and not args.simulate:
         raise InvalidRequestError("--plan-per-machine is an option of the study: give --simulate too")
     settings = plan_settings(mech, args, args.seed)
+    if mech.tool is not None:  # a hybrid: a tracker on the TCP frame (calibration/hybrid_poses.py)
+        check_instrument(mech, settings)
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
     pset = machine_parameter_set(mech, args.pset)  # a hybrid's: the module's, then the tool chain's
     out = args.out if args.out is not None else Path("out") / mech.name / "calibration"

@@ -1,0 +1,168 @@
+"""Calibration of a hybrid machine (a tracker on the TCP) against exact kinematics (docs/hybrid.md).
+
+The whole machine's calibration reuses the module's pipeline with the TCP frame as its "platform":
+the maps are the TCP's (``ToolSeparation``), the machine is the module and the tool chain solved
+exactly (:class:`pkmtol.calibration.hybrid_machine.HybridMachine`), the poses are TCP points × tool
+axes, and the controller re-solves the whole task (TCP and tool axis) with its identified model.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pkmtol.calibration.compensation import controller_commands, pose_errors
+from pkmtol.calibration.holdout import holdout_poses
+from pkmtol.calibration.hybrid_machine import HybridMachine
+from pkmtol.calibration.identification import identify, model_positions
+from pkmtol.calibration.machine import Machine
+from pkmtol.calibration.plan import candidate_pool, make_plan
+from pkmtol.calibration.postcal import calibrated_maps
+from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set
+from pkmtol.model.loader import load_mechanism
+
+ROOT = Path(__file__).resolve().parents[1]
+HYBRID = ROOT / "robots" / "r2rps_ups_wrist"
+
+
+@pytest.fixture(scope="module")
+def hybrid():
+    mech = load_mechanism(HYBRID)
+    pset = machine_parameter_set(mech, "dh")
+    grid = grid_sweep(mech, pset)
+    classes = grid.classify()
+    settings = CalibrationSettings(candidates=60)
+    pool = candidate_pool(mech, pset, settings, grid=grid)
+    return mech, pset, grid, classes, settings, pool
+
+
+def _identify(mech, pset, plan, y):
+    return identify(
+        mech, pset, plan.ident, plan.H, plan.maps.commands, plan.maps.q, y, plan.targets_m, plan.prior_sigma
+    )
+
+
+def _tilt(rotations, rotation_errors):
+    """Angle between the nominal tool axis (z of the TCP frame) and the actual one [rad]."""
+    out = []
+    for r, th in zip(rotations, rotation_errors, strict=True):
+        a, b = r[:, 2], pin.exp3(th) @ r[:, 2]
+        out.append(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
+    return np.array(out)
+
+
+def test_pool_is_the_tcp_task_and_the_nominal_machine_reproduces_it(hybrid):
+    """The pool's poses are the TCP's; the nominal machine's exact kinematics put the TCP there."""
+    mech, pset, grid, classes, settings, pool = hybrid
+    assert isinstance(Machine(mech, pset, np.zeros(len(pset))), HybridMachine)
+    assert len(pool) > len(grid.points_m) and pool.task_rows.shape == (len(pool), 5, 6)
+    assert pool.commands.shape[1] == 3 + 2  # the module's actuators, then the wrist's
+    nominal = Machine(mech, pset, np.zeros(len(pset)))
+    sols = nominal.forward_many(pool.commands, pool.q)
+    assert sols.ok.all()
+    np.testing.assert_allclose(sols.translation, pool.points_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sols.rotation, pool.rotations, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(pool.points_m[: len(grid.points_m)], grid.points_m, rtol=0, atol=1e-12)
+    # the tool axis (z of the TCP frame) is the target axis of every grid pose
+    np.testing.assert_allclose(pool.rotations[: len(grid.points_m), :, 2], grid.axes, rtol=0, atol=1e-12)
+    # the default tracker target is the TCP itself
+    np.testing.assert_array_equal(settings.targets(mech), np.zeros((1, 3)))
+
+
+def test_measurement_jacobian_matches_finite_differences_of_the_exact_machine(hybrid):
+    """``H`` (the TCP's error model) against central differences of the exact hybrid kinematics."""
+    mech, pset, grid, classes, settings, pool = hybrid
+    plan = make_plan(mech, pset, classes, CalibrationSettings(controller="full"), pool, poses=20)
+    rng = np.random.default_rng(4)
+    module = [c for c in plan.ident.columns if c < pset.module_count]
+    tool = [c for c in plan.ident.columns if c >= pset.module_count]
+    cols = list(rng.choice(module, 8, replace=False)) + tool
+    h = 1e-6
+    for c in cols:
+        d = np.zeros(len(pset))
+        d[c] = h
+        yp, _ = model_positions(Machine(mech, pset, d), plan.maps.commands, plan.maps.q, plan.targets_m)
+        d[c] = -h
+        ym, _ = model_positions(Machine(mech, pset, d), plan.maps.commands, plan.maps.q, plan.targets_m)
+        fd = ((yp - ym) / (2 * h)).reshape(-1)
+        np.testing.assert_allclose(
+            plan.H[:, c], fd, rtol=0, atol=1e-7 * max(1.0, np.abs(fd).max()), err_msg=pset.names[c]
+        )
+
+
+def test_actuation_map_is_the_twist_of_every_actuator_offset(hybrid):
+    """A command change moves the TCP as the actuator's zero offset does: module's and wrist's."""
+    mech, pset, grid, classes, settings, pool = hybrid
+    act = [i for i, p in enumerate(pset.parameters) if p.actuator]
+    assert [pset.names[i] for i in act[-2:]] == ["wrist.wrist_c.offset", "wrist.wrist_a.offset"]
+    np.testing.assert_allclose(pool.actuation, pool.twist[:, :, act], rtol=0, atol=1e-12)
+
+
+def test_controller_inverse_kinematics_is_the_machines_own(hybrid):
+    """The commands a perturbed machine computes for a target put its own TCP there, along the axis."""
+    mech, pset, grid, classes, settings, pool = hybrid
+    held = pool.subset(np.arange(0, len(pool), 40))
+    rng = np.random.default_rng(5)
+    for part in (slice(0, pset.module_count), slice(pset.module_count, len(pset))):
+        delta = np.zeros(len(pset))
+        delta[part] = rng.standard_normal(delta[part].size) * 1e-4
+        machine = Machine(mech, pset, delta)
+        u, ok = controller_commands(machine, held.points_m, held.q)
+        err = pose_errors(machine, u, held.q, held.points_m, held.rotations)
+        assert ok.all() and err.solved.all()
+        assert np.abs(err.position_m).max() < 1e-11
+        assert _tilt(held.rotations, err.rotation_rad).max() < 1e-11
+        assert np.abs(u - held.commands).max() > 1e-6  # it did correct the commands
+
+
+def test_noise_free_identification_recovers_the_base_parameters(hybrid):
+    mech, pset, grid, classes, settings, pool = hybrid
+    plan = make_plan(mech, pset, classes, settings, pool, poses=40)
+    assert plan.ident.rank == plan.pool_rank and plan.ident.rank > 0
+    rng = np.random.default_rng(11)
+    delta = np.zeros(len(pset))
+    scale = np.where(np.array(pset.units) == "m", 1e-4, 5e-4)
+    b = plan.ident.base_columns
+    assert any(i >= pset.module_count for i in b)  # the wrist's and the tool's parameters are identified
+    delta[b] = rng.standard_normal(b.size) * scale[b]
+    y, _ = model_positions(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q, plan.targets_m)
+    res = _identify(mech, pset, plan, y)
+    beta = plan.ident.true_base_values(delta)
+    assert res.converged
+    assert np.linalg.norm(res.identified - beta) <= 1e-8 * np.linalg.norm(beta)
+    assert res.rms_after_m <= 1e-12 < res.rms_before_m
+
+
+def test_calibrated_machine_matches_the_linear_model_to_second_order(hybrid):
+    """Compensatable errors only, no noise: the TCP error left after calibration is ``L δ`` (second order)."""
+    mech, pset, grid, classes, settings, pool = hybrid
+    plan = make_plan(mech, pset, classes, settings, pool, poses=40)
+    ho = holdout_poses(mech, pset, 30, np.random.default_rng(8))
+    maps = calibrated_maps(ho.maps, plan.H, plan.ident)
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    direction = np.zeros(len(pset))
+    direction[comp] = np.random.default_rng(2).standard_normal(len(comp))
+    gaps = []
+    for size in (1e-5, 1e-6):
+        delta = direction * size
+        true = Machine(mech, pset, delta)
+        y, _ = model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
+        res = _identify(mech, pset, plan, y)
+        u, ok = controller_commands(Machine(mech, pset, res.estimate), ho.maps.points_m, ho.maps.q)
+        err = pose_errors(true, u, ho.maps.q, ho.maps.points_m, ho.maps.rotations)
+        before = pose_errors(true, ho.maps.commands, ho.maps.q, ho.maps.points_m, ho.maps.rotations)
+        assert ok.all() and err.solved.all()
+        lin_p = np.einsum("kin,n->ki", maps.position, delta)
+        lin_r = np.einsum("kin,n->ki", maps.rotation, delta)
+        # the TCP position is identified: nothing is left of it to first order
+        assert np.abs(lin_p).max() < 1e-9 * size / 1e-5
+        assert np.abs(err.position_m).max() < 1e-3 * np.abs(before.position_m).max()
+        # the tool axis is not seen by a tracker on the TCP: what is left of it is the linear model's
+        gap = np.abs(err.rotation_rad - lin_r).max()
+        assert gap <= 1e-3 * np.abs(lin_r).max()
+        gaps.append(gap)
+    assert gaps[0] / gaps[1] > 5  # second order: a tenth of the errors, a hundredth of the gap
