@@ -8,6 +8,7 @@ axes, and the controller re-solves the whole task (TCP and tool axis) with its i
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -19,14 +20,23 @@ from pkmtol.calibration.holdout import holdout_poses
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.identification import identify, model_positions
 from pkmtol.calibration.machine import Machine
+from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.plan import candidate_pool, make_plan
 from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
+from pkmtol.calibration.study import calibrate_and_evaluate
+from pkmtol.design.exact import grid_reliability
+from pkmtol.design.job import DesignOptions, allocate
+from pkmtol.design.modes import mode_setup
 from pkmtol.error_model.task import grid_sweep, machine_parameter_set
+from pkmtol.error_model.tool_sweep import ToolSweep
+from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.loader import load_mechanism
+from pkmtol.statistics import wilson_interval
 
 ROOT = Path(__file__).resolve().parents[1]
 HYBRID = ROOT / "robots" / "r2rps_ups_wrist"
+PLAN = CalibrationSettings(poses=30, candidates=60)
 
 
 @pytest.fixture(scope="module")
@@ -166,3 +176,74 @@ def test_calibrated_machine_matches_the_linear_model_to_second_order(hybrid):
         assert gap <= 1e-3 * np.abs(lin_r).max()
         gaps.append(gap)
     assert gaps[0] / gaps[1] > 5  # second order: a tenth of the errors, a hundredth of the gap
+
+
+@pytest.fixture(scope="module")
+def calibrated_design():
+    """``allocate --compensation calibrated --compensate-with module`` of the hybrid (a fast run)."""
+    mech = load_mechanism(HYBRID)
+    mech = dataclasses.replace(mech, extra={**mech.extra, "tool_scope": "module"})
+    opts = DesignOptions(
+        compensation="calibrated",
+        calibration=PLAN,
+        samples=2000,
+        verification_poses=100,
+        exact_samples=20,
+        claim_poses=20,
+    )
+    return mech, allocate(mech, opts)
+
+
+def test_calibrated_allocation_tolerances_what_the_calibration_leaves(calibrated_design):
+    mech, r = calibrated_design
+    assert r.compensation == "calibrated" and isinstance(r.grid, ToolSweep)
+    ident = r.calibration_plan.ident
+    for c in ident.base_columns:
+        assert r.mode_classes[c] == "identified"
+        assert np.abs(r.maps.position[:, :, c]).max() <= 1e-12
+    assert r.uncompensatable.size > 0
+    for i in r.uncompensatable:
+        assert r.mode_classes[i] == "toleranced" and np.abs(r.maps.position[:, :, i]).max() > 1e-9
+    groups = {r.pset.sub_assembly(i) for i in r.uncompensatable}
+    assert groups == {"module", "wrist", "tool"}
+    assert np.all(np.isfinite(r.tolerances[r.uncompensatable, r.design_column]))
+
+
+def test_calibrated_design_point_fails_as_often_as_claimed_on_exact_kinematics(calibrated_design):
+    """Machines at the printed tolerances, calibrated by the plan on exact kinematics, at the design point.
+
+    FOSM claims R = Φ(β) at the design point for the linear model with the noise; each machine is
+    drawn at the tolerances (the identified errors at their manufacturing σ), measured at the
+    plan's poses with 10 µm noise, identified by Gauss–Newton on the exact hybrid, commanded by its
+    model's exact inverse kinematics (TCP and tool axis) and measured. The linear prediction of each
+    machine's TCP error must match the exact one, and the claimed failure probability must lie in the
+    Wilson 95 % interval of the observed fraction.
+    """
+    mech, r = calibrated_design
+    plan, pset = r.calibration_plan, r.pset
+    chain = ClosedChain(mech)
+    held = pose_maps(r.grid, chain.actuated_idx, mech.reference_point_m).subset(np.array([r.worst_index]))
+    setup = mode_setup(mech, pset, r.grid, r.classes, "calibrated", chain, PLAN)
+    sigma = np.zeros(len(pset))
+    sigma[r.uncompensatable] = r.tolerances[r.uncompensatable, r.design_column]
+    sigma[setup.background] = PLAN.manufacturing_sigma(pset)[setup.background]
+    acc = calibrated_maps(held, plan.H, plan.ident, plan.prior_sigma)
+    N = acc.position_noise
+    claim = (
+        1.0
+        - grid_reliability(acc.position, sigma, r.target_m, acc.noise_m**2 * (N @ N.transpose(0, 2, 1)))[0]
+    )
+    assert 0.005 < claim < 0.1
+    rng = np.random.default_rng(12)
+    failures, K, gaps = 0, 200, []
+    for _ in range(K):
+        delta = rng.standard_normal(len(pset)) * sigma
+        noise = rng.standard_normal(plan.H.shape[0]) * PLAN.noise_m
+        errs, _ = calibrate_and_evaluate(mech, pset, plan, Machine(mech, pset, delta), noise, held)
+        assert errs.solved[0]
+        linear = acc.position[0] @ delta + acc.position_noise[0] @ noise
+        gaps.append(np.linalg.norm(errs.position_m[0] - linear))
+        failures += int(errs.dlambda_m[0] > r.target_m)
+    assert max(gaps) < 0.05 * r.target_m
+    lo, hi = wilson_interval(failures, K)
+    assert lo <= claim <= hi, (failures, K, claim)
