@@ -6,21 +6,27 @@ task space, axis uniform over the cone), the held-out poses ``count`` random tar
 solved from its nearest grid pose, unreachable or singular draws are skipped, and the solved poses
 are separated by the whole machine's error model (:func:`hybrid_sweep`) so that
 :func:`pkmtol.calibration.maps.pose_maps` gives their maps at the TCP. The instrument is a tracker
-on the TCP (``tracker``, or ``tracker-multi`` with targets in the TCP frame).
+on the TCP (``tracker``, or ``tracker-multi`` with targets in the TCP frame). Measured poses
+(``pkmtol calibrate --measurements``) are solved by the nominal machine's forward kinematics at
+their commands (:func:`measured_sweep`).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from pkmtol.calibration.hybrid_machine import HybridMachine, nominal_poses
 from pkmtol.calibration.maps import PoseMaps, pose_maps
+from pkmtol.calibration.measurement_files import actuator_columns
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.task import grid_sweep, tool_scope
 from pkmtol.error_model.tool_chain import HybridParameterSet
 from pkmtol.error_model.tool_sweep import ToolSweep, hybrid_sweep, nearest_poses, tool_task_sample
-from pkmtol.exceptions import InvalidRequestError
+from pkmtol.exceptions import InvalidRequestError, MeasurementFileError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.hybrid import HybridChain, HybridPose
 from pkmtol.model.mechanism import Mechanism
@@ -141,3 +147,64 @@ def hybrid_holdout_sweep(
             f"'{mechanism.name}': no random target of the TCP's task space is reachable; check the task space"
         )
     return sw, skipped
+
+
+def measured_sweep(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    grid: Sweep | None,
+    commands: np.ndarray,
+    path: Path,
+    lines: np.ndarray,
+) -> ToolSweep:
+    """The nominal machine at measured commands (N, f + w): its TCP and tool axis there, separated.
+
+    Each pose is solved by the nominal machine's exact forward kinematics from the grid pose with
+    the closest commands.
+
+    Raises:
+        MeasurementFileError: a command outside its joint's limits, or commands the nominal machine
+            cannot reach from the grid (names the line).
+    """
+    sw = _tool_grid(mechanism, pset, None, grid)
+    chain = ClosedChain(mechanism)
+    gm = pose_maps(sw, chain.actuated_idx, np.zeros(3))
+    tool = mechanism.tool
+    assert tool is not None
+    act = list(tool.actuated)
+    lower = np.concatenate([chain.lower[chain.actuated_idx], tool.model.lowerPositionLimit[act]])
+    upper = np.concatenate([chain.upper[chain.actuated_idx], tool.model.upperPositionLimit[act]])
+    names = [c for c, _ in actuator_columns(mechanism)]
+    u = np.atleast_2d(np.asarray(commands, dtype=float))
+    for k, row in enumerate(u):
+        bad = np.flatnonzero((row < lower - 1e-12) | (row > upper + 1e-12))
+        if bad.size:
+            j = int(bad[0])
+            raise MeasurementFileError(
+                path,
+                int(lines[k]),
+                names[j],
+                f"command {row[j]:.6g} is outside the joint's limits [{lower[j]:.6g}, {upper[j]:.6g}] "
+                "(SI units: m or rad)",
+            )
+    span = np.maximum(np.ptp(gm.commands, axis=0), 1e-9)
+    near = np.argmin((((gm.commands[None] - u[:, None]) / span) ** 2).sum(axis=2), axis=1)
+    sols = HybridMachine(mechanism, pset, np.zeros(len(pset))).forward_many(u, gm.q[near])
+    for k, err in enumerate(sols.errors):
+        if err is not None:
+            raise MeasurementFileError(
+                path,
+                int(lines[k]),
+                "",
+                f"the nominal machine cannot reach these commands ({err}); check the commands and units",
+            )
+    axes = None if mechanism.tool_directions is None else sols.rotation[:, :, 2]
+    return hybrid_sweep(
+        mechanism,
+        pset,  # type: ignore[arg-type]
+        sols.translation,
+        axes,
+        HybridChain(mechanism, chain),
+        tool_scope(mechanism),
+        guesses=nominal_poses(mechanism, sols.q),
+    )
