@@ -9,6 +9,7 @@ axes, and the controller re-solves the whole task (TCP and tool axis) with its i
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +22,12 @@ from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.identification import identify, model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
+from pkmtol.calibration.measurement_files import measurements_csv
 from pkmtol.calibration.plan import candidate_pool, make_plan
 from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.study import calibrate_and_evaluate
+from pkmtol.cli import main
 from pkmtol.design.exact import grid_reliability
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.design.modes import mode_setup
@@ -247,3 +250,65 @@ def test_calibrated_design_point_fails_as_often_as_claimed_on_exact_kinematics(c
     assert max(gaps) < 0.05 * r.target_m
     lo, hi = wilson_interval(failures, K)
     assert lo <= claim <= hi, (failures, K, claim)
+
+
+def test_cli_plan_writes_the_whole_machines_commands(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    args = ["calibrate", str(HYBRID), "--plan", str(plan), "--random-sets", "1", "--holdout", "20"]
+    assert main([*args, "--poses", "30", "--no-figures", "--out", str(tmp_path / "out")]) == 0
+    rows = plan.read_text().splitlines()
+    assert rows[0].split(",")[4:] == [
+        "wrist.wrist_c [deg]",
+        "wrist.wrist_a [deg]",
+        "TCP_x [mm]",
+        "TCP_y [mm]",
+        "TCP_z [mm]",
+    ]
+    assert len(rows) == 31
+    # the plan's TCP is where the nominal machine's exact forward kinematics put it at those commands
+    mech = load_mechanism(HYBRID)
+    pset = machine_parameter_set(mech, "dh")
+    table = np.array([[float(v) for v in r.split(",")[1:]] for r in rows[1:]])
+    u = np.hstack([1e-3 * table[:, :3], np.radians(table[:, 3:5])])
+    grid = grid_sweep(mech, pset)
+    q0 = pose_maps(grid, ClosedChain(mech).actuated_idx, mech.reference_point_m).q
+    near = [int(np.argmin(np.linalg.norm(grid.points_m - 1e-3 * t[5:], axis=1))) for t in table]
+    sols = Machine(mech, pset, np.zeros(len(pset))).forward_many(u, q0[near])
+    assert sols.ok.all()
+    np.testing.assert_allclose(sols.translation, 1e-3 * table[:, 5:], rtol=0, atol=1e-6)
+    assert "d-optimal" in capsys.readouterr().out
+
+
+def test_cli_measurements_round_trip_writes_a_loadable_calibrated_hybrid(hybrid, tmp_path, capsys):
+    """Simulated tracker data at the TCP → identified parameters → calibrated URDFs of limbs and wrist.
+
+    The calibrated folder loads as a hybrid, and its nominal forward kinematics is the identified
+    machine's at the measured commands (TCP position and orientation to 1e-12).
+    """
+    mech, pset, grid, classes, settings, pool = hybrid
+    plan = make_plan(mech, pset, classes, CalibrationSettings(candidates=60), pool, poses=30)
+    rng = np.random.default_rng(3)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    y, _ = model_positions(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q, plan.targets_m)
+    y = y + rng.standard_normal(y.shape) * 1e-5
+    path = tmp_path / "measurements.csv"
+    path.write_text(measurements_csv(mech, plan.maps.commands, y))
+    out = tmp_path / "out"
+    assert main(["calibrate", str(HYBRID), "--measurements", str(path), "--out", str(out)]) == 0
+    assert "base parameter" in capsys.readouterr().out
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_m"] < 1.2e-5 < doc["rms_before_m"]
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    assert np.any(estimate[pset.module_count :] != 0.0)  # the wrist and the tool were identified too
+    identified = Machine(mech, pset, estimate)
+    calibrated = load_mechanism(out / "calibrated")
+    assert calibrated.tool is not None and calibrated.tool_directions is not None
+    cal_set = machine_parameter_set(calibrated, "urdf")
+    nominal = Machine(calibrated, cal_set, np.zeros(len(cal_set)))
+    a = identified.forward_many(plan.maps.commands, plan.maps.q)
+    b = nominal.forward_many(plan.maps.commands, plan.maps.q - identified.offsets)
+    assert a.ok.all() and b.ok.all()
+    assert np.abs(a.translation - b.translation).max() <= 1e-12
+    assert np.abs(a.rotation - b.rotation).max() <= 1e-12

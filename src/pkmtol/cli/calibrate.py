@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_poses import check_instrument
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
@@ -16,7 +17,7 @@ from pkmtol.calibration.instruments import instrument_for
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
-from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
+from pkmtol.calibration.urdf_export import write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
@@ -172,8 +173,7 @@ def _instrument_data(
         (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
     ]
     try:
-        urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
-        toml = calibrated_toml(mech, pset, cal.result.estimate)
+        urdfs, toml = calibrated_files(mech, pset, cal.result.estimate)  # a hybrid's tool chain too
         files += write_calibrated_folder(out / "calibrated", urdfs, toml)
     except Exception as err:  # noqa: BLE001 - reported, the identification stands
         print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
@@ -226,8 +226,7 @@ def _run(args: argparse.Namespace) -> int:
             (out / "residuals.csv", residuals_csv(cal).encode()),
         ]
         try:
-            urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
-            toml = calibrated_toml(mech, pset, cal.result.estimate)
+            urdfs, toml = calibrated_files(mech, pset, cal.result.estimate)  # a hybrid's tool chain too
             files += write_calibrated_folder(out / "calibrated", urdfs, toml)
         except Exception as err:  # noqa: BLE001 - reported, the identification stands
             print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
