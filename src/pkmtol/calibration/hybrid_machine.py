@@ -9,7 +9,10 @@ along the target axis (the axis of the nominal machine at the guess, so the cont
 the pose the task asked for). Errors: the module's part of ``delta`` perturbs the limbs, the tool
 part the tool chain's placements and zero offsets (as :mod:`pkmtol.error_model.tool_exact`).
 Commands are readings: a joint's actual value is its reading plus its zero offset; a locked wrist
-joint sits at its set value (``Tool.home``) plus its offset.
+joint sits at its set value (``Tool.home``) plus its offset. With ``[calibration] tracker_on =
+"nose"`` the tracker's targets sit on the spindle: ``forward_many``'s frame is then the TCP frame
+without the tool's own errors (the targets in the TCP frame, the nose at ``(0, 0, −L)``), and its
+``task_*`` fields are the TCP's.
 """
 
 from __future__ import annotations
@@ -17,9 +20,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.tool_chain import HybridParameterSet
+from pkmtol.error_model.tool_sweep import tracker_on
 from pkmtol.exceptions import InvalidRequestError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.kinematics.hybrid import HybridChain, HybridPose
@@ -37,20 +42,33 @@ class HybridSolutions:
 
     Attributes:
         q: Shape (B, N + nq_t): actual joint values, the module's then the tool chain's.
-        rotation: Shape (B, 3, 3): the TCP frame's orientation in K.
-        translation: Shape (B, 3): the TCP in K [m].
+        rotation: Shape (B, 3, 3): the orientation in K of the frame the tracker's targets sit on:
+            the TCP frame, or with the tracker on the spindle nose the spindle's frame at the TCP
+            (the TCP frame without the tool's own errors).
+        translation: Shape (B, 3): that frame's origin in K [m].
         errors: Per problem, the error that stopped it (None: solved).
+        task_translation: Shape (B, 3): the TCP in K [m] (None: :attr:`translation`).
+        task_rotation: Shape (B, 3, 3): the TCP frame's orientation (None: :attr:`rotation`).
     """
 
     q: np.ndarray
     rotation: np.ndarray
     translation: np.ndarray
     errors: tuple[KinematicsError | None, ...]
+    task_translation: np.ndarray | None = None
+    task_rotation: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.task_translation is None:
+            object.__setattr__(self, "task_translation", self.translation)
+        if self.task_rotation is None:
+            object.__setattr__(self, "task_rotation", self.rotation)
 
     @property
     def p_m(self) -> np.ndarray:
         """Shape (B, 3): the TCP in K [m] (the task point)."""
-        return self.translation
+        assert self.task_translation is not None
+        return self.task_translation
 
     @property
     def ok(self) -> np.ndarray:
@@ -81,6 +99,9 @@ class HybridMachine:
         tool_model = perturbed_tool_model(self.tool, t_eps)
         self.chain = HybridChain(mechanism, module, tool_model, check_limits=False)
         self.kinematics = ToolKinematics(self.tool, tool_model)
+        # with the tracker on the spindle nose, its targets do not see the TCP frame's own errors
+        on_nose = tracker_on(mechanism) == "nose"
+        self._spindle = self._spindle_frame(t_eps[self.tool.nq]) if on_nose else None
         self.nq_module = int(module_offsets.size)
         self.module_actuated = np.asarray(module.actuated_idx, dtype=int)
         self.tool_actuated = list(self.tool.actuated)
@@ -88,6 +109,19 @@ class HybridMachine:
         self.actuated_idx = np.concatenate(
             [self.module_actuated, self.nq_module + np.asarray(self.tool_actuated, dtype=int)]
         )
+
+    def _spindle_frame(self, eps_tcp: np.ndarray) -> pin.SE3:
+        """The spindle's frame at the TCP relative to the TCP frame: ``exp6(ε_t)⁻¹ exp6(ε_t − ε_tool)``.
+
+        ``ε_t`` is the TCP frame's whole placement error, ``ε_tool`` the part of the tool's own
+        parameters (``tool.*``); the rest (a D–H wrist's nose-link errors) moves the spindle too.
+        """
+        pset = self.pset
+        assert isinstance(pset, HybridParameterSet)
+        own = np.array([pset.sub_assembly(i) == "tool" for i in range(len(pset))])
+        eps_tool = split_tool_eps(pset.tool_raw(np.where(own, self.delta, 0.0)), self.tool)[0][self.tool.nq]
+        eps = np.asarray(eps_tcp, dtype=float)
+        return pin.exp6(pin.Motion(eps)).inverse() * pin.exp6(pin.Motion(eps - eps_tool))
 
     def forward_many(self, commands: np.ndarray, q0: np.ndarray) -> HybridSolutions:
         """The TCP placements at readings ``commands`` (B, f + w), guesses ``q0`` (B, N + nq_t).
@@ -105,7 +139,18 @@ class HybridMachine:
         rt, pt, _ = self.kinematics.frames(qt)
         rot = np.einsum("bij,bjk->bik", mod.rotation, rt)
         pos = mod.translation + np.einsum("bij,bj->bi", mod.rotation, pt)
-        return HybridSolutions(q=np.hstack([mod.q, qt]), rotation=rot, translation=pos, errors=mod.errors)
+        q = np.hstack([mod.q, qt])
+        if self._spindle is None:
+            return HybridSolutions(q=q, rotation=rot, translation=pos, errors=mod.errors)
+        s = self._spindle  # TCP · exp6(ε_t)⁻¹: the spindle's frame at the TCP
+        return HybridSolutions(
+            q=q,
+            rotation=rot @ s.rotation,
+            translation=pos + rot @ s.translation,
+            errors=mod.errors,
+            task_translation=pos,
+            task_rotation=rot,
+        )
 
     def inverse_many(self, targets_m: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, HybridSolutions]:
         """Readings (B, f + w) that put the TCP at ``targets_m`` (B, 3), the tool along the target axis.

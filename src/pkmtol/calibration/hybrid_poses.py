@@ -13,6 +13,7 @@ their commands (:func:`measured_sweep`).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,13 @@ from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.task import grid_sweep, tool_scope
 from pkmtol.error_model.tool_chain import HybridParameterSet
-from pkmtol.error_model.tool_sweep import ToolSweep, hybrid_sweep, nearest_poses, tool_task_sample
+from pkmtol.error_model.tool_sweep import (
+    ToolSweep,
+    hybrid_sweep,
+    nearest_poses,
+    tool_task_sample,
+    tracker_on,
+)
 from pkmtol.exceptions import InvalidRequestError, MeasurementFileError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.hybrid import HybridChain, HybridPose
@@ -47,6 +54,23 @@ def check_instrument(mechanism: Mechanism, settings: CalibrationSettings) -> Non
             f"targets sit on the TCP frame (instrument = {' or '.join(INSTRUMENTS)}), not a "
             f"{settings.instrument}; set [calibration] instrument or --instrument to tracker"
         )
+
+
+def with_tracker_on(mechanism: Mechanism, point: str) -> Mechanism:
+    """The mechanism with ``[calibration] tracker_on = point`` (``tcp`` or ``nose``).
+
+    Raises:
+        InvalidRequestError: the mechanism has no tool chain, or ``point`` is neither.
+    """
+    if mechanism.tool is None:
+        raise InvalidRequestError(
+            f"--tracker-on {point}: '{mechanism.name}' has no tool chain; the tracker's targets of a "
+            "module sit on its platform ([calibration] targets_m)"
+        )
+    table = {**(mechanism.extra.get("calibration") or {}), "tracker_on": point}
+    out = dataclasses.replace(mechanism, extra={**mechanism.extra, "calibration": table})
+    tracker_on(out)  # checks the value
+    return out
 
 
 def _tool_grid(

@@ -41,6 +41,9 @@ class PoseMaps:
             point, for a hybrid machine (the TCP position and the tool axis across its target:
             ``ToolSeparation.task_rows``; the "platform" of these maps is then the TCP frame);
             None: P's position through :attr:`task_projection`.
+        measured_twist: Shape (m, 6, n): the twist of the body the instrument's targets sit on,
+            when it is not the platform's: a hybrid's spindle (``[calibration] tracker_on =
+            "nose"``), the TCP frame's twist without the tool's own errors; None: :attr:`twist`.
     """
 
     points_m: np.ndarray
@@ -54,6 +57,7 @@ class PoseMaps:
     stations: np.ndarray | None = None
     groups: np.ndarray | None = None
     task_rows: np.ndarray | None = None
+    measured_twist: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.points_m.shape[0])
@@ -73,7 +77,13 @@ class PoseMaps:
             stations=None if self.stations is None else self.stations[idx],
             groups=None if self.groups is None else self.groups[idx],
             task_rows=None if self.task_rows is None else self.task_rows[idx],
+            measured_twist=None if self.measured_twist is None else self.measured_twist[idx],
         )
+
+    @property
+    def measurement_twist(self) -> np.ndarray:
+        """Shape (m, 6, n): the twist the instrument reads (:attr:`measured_twist`, else :attr:`twist`)."""
+        return self.twist if self.measured_twist is None else self.measured_twist
 
     @property
     def station_index(self) -> np.ndarray:
@@ -111,7 +121,7 @@ class PoseMaps:
 
     def measurement_rows(self, targets_m: np.ndarray) -> np.ndarray:
         """Target position errors per unit parameter at held commands, shape (m, 3·t, n)."""
-        return np.einsum("kij,kjn->kin", self.point_rows(targets_m), self.twist)
+        return np.einsum("kij,kjn->kin", self.point_rows(targets_m), self.measurement_twist)
 
     def position_map(self) -> np.ndarray:
         """P's position error per unit parameter at held commands (``J_total``), shape (m, 3, n).
@@ -180,19 +190,24 @@ def _tool_pose_maps(grid: ToolSweep, actuated_idx: np.ndarray) -> PoseMaps:
     (``actuated_idx``) then the wrist's; ``twist`` and ``actuation`` are the TCP's
     (``ToolSeparation.twist_map`` A and ``actuation_map`` B); the task rows are the TCP position
     and, with a free wrist, the tool axis across its target (a locked wrist: the position only).
+    A tracker on the spindle nose (``ToolSweep.tracker_on``) reads the spindle's twist: the TCP's
+    without the TCP frame's own errors.
     """
     hp = grid.hybrid_poses
     qm = np.array([h.module.q_all for h in hp])
     qt = np.array([h.q_tool for h in hp])
     act = np.asarray(actuated_idx, dtype=int)
     rows = np.array([s.task_rows for s in grid.separations])  # type: ignore[attr-defined]
+    twist = np.array([s.twist_map for s in grid.separations])
+    frame = np.array([s.frame_map for s in grid.separations])  # type: ignore[attr-defined]
     return PoseMaps(
         points_m=np.array([h.tcp_m for h in hp]),
         rotations=np.array([h.oMt.rotation for h in hp]),
         q=np.hstack([qm, qt]),
         commands=np.hstack([qm[:, act], qt[:, list(grid.tool_actuated)]]),
-        twist=np.array([s.twist_map for s in grid.separations]),
+        twist=twist,
         actuation=np.array([s.actuation_map for s in grid.separations]),
         reference_point_m=np.zeros(3),
         task_rows=rows if grid.axes is not None else rows[:, :3],
+        measured_twist=twist - frame if grid.tracker_on == "nose" else None,
     )

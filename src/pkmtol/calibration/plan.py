@@ -158,6 +158,9 @@ def concat_maps(a: PoseMaps, b: PoseMaps) -> PoseMaps:
         task_rows=None
         if a.task_rows is None or b.task_rows is None
         else np.concatenate([a.task_rows, b.task_rows]),
+        measured_twist=None
+        if a.measured_twist is None or b.measured_twist is None
+        else np.concatenate([a.measured_twist, b.measured_twist]),
     )
 
 

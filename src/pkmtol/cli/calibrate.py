@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol.calibration.hybrid_export import calibrated_files
-from pkmtol.calibration.hybrid_poses import check_instrument
+from pkmtol.calibration.hybrid_poses import check_instrument, with_tracker_on
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
@@ -24,6 +24,7 @@ from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.task import machine_parameter_set
+from pkmtol.error_model.tool_sweep import TRACKER_POINTS
 from pkmtol.exceptions import FiguresError, InvalidRequestError, MechanismFormatError, OutputError
 from pkmtol.files import write_atomic
 from pkmtol.model.loader import load_mechanism
@@ -77,6 +78,13 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "plan of its own half of the candidate pool) and report the plan-to-plan spread",
     )
     p.add_argument("--measurements", type=Path, default=None, help="identify from this measurement CSV")
+    p.add_argument(
+        "--tracker-on",
+        choices=TRACKER_POINTS,
+        default=None,
+        help="a hybrid machine: the tracker's targets on the TCP frame (default) or on the spindle nose "
+        "(the tool's own errors do not move them); [calibration] tracker_on",
+    )
     p.add_argument(
         "--tolerances",
         type=Path,
@@ -183,6 +191,8 @@ def _instrument_data(
 
 def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
+    if args.tracker_on is not None:  # a hybrid's tracker on the TCP or the spindle nose
+        mech = with_tracker_on(mech, args.tracker_on)
     for name, value, low in (
         ("--machines", args.machines, 1),
         ("--holdout", args.holdout, 1),
