@@ -19,6 +19,7 @@ import pytest
 from pkmtol.calibration.compensation import controller_commands, pose_errors
 from pkmtol.calibration.holdout import holdout_poses
 from pkmtol.calibration.hybrid_machine import HybridMachine
+from pkmtol.calibration.hybrid_poses import with_tracker_on
 from pkmtol.calibration.identification import identify, model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
@@ -312,3 +313,66 @@ def test_cli_measurements_round_trip_writes_a_loadable_calibrated_hybrid(hybrid,
     assert a.ok.all() and b.ok.all()
     assert np.abs(a.translation - b.translation).max() <= 1e-12
     assert np.abs(a.rotation - b.rotation).max() <= 1e-12
+
+
+@pytest.fixture(scope="module")
+def on_nose():
+    """The hybrid with its tracker on the spindle nose (``[calibration] tracker_on = "nose"``)."""
+    mech = with_tracker_on(load_mechanism(HYBRID), "nose")
+    pset = machine_parameter_set(mech, "dh")
+    grid = grid_sweep(mech, pset)
+    classes = grid.classify()
+    pool = candidate_pool(mech, pset, CalibrationSettings(candidates=60), grid=grid)
+    return mech, pset, classes, pool
+
+
+def test_nose_tracker_reads_the_spindle_not_the_tool(on_nose):
+    """H against finite differences of the exact machine; the tool's own errors do not reach the nose."""
+    mech, pset, classes, pool = on_nose
+    settings = CalibrationSettings(controller="full")
+    np.testing.assert_allclose(settings.targets(mech), [[0.0, 0.0, -mech.tool.length_m]])
+    plan = make_plan(mech, pset, classes, settings, pool, poses=20)
+    h = 1e-6
+    for c in range(pset.module_count, len(pset)):
+        d = np.zeros(len(pset))
+        d[c] = h
+        yp, _ = model_positions(Machine(mech, pset, d), plan.maps.commands, plan.maps.q, plan.targets_m)
+        d[c] = -h
+        ym, _ = model_positions(Machine(mech, pset, d), plan.maps.commands, plan.maps.q, plan.targets_m)
+        fd = ((yp - ym) / (2 * h)).reshape(-1)
+        np.testing.assert_allclose(plan.H[:, c], fd, rtol=0, atol=1e-7, err_msg=pset.names[c])
+        tool_own = pset.sub_assembly(c) == "tool"
+        assert (np.abs(fd).max() < 1e-9) == (tool_own or pset.names[c] == "wrist.δθ_e"), pset.names[c]
+    # the nose link's errors (a D–H wrist carries them in the TCP frame) do move the nose
+    assert np.abs(plan.H[:, pset.names.index("wrist.δd_3")]).max() > 0.5
+
+
+def test_nose_calibration_leaves_the_tools_errors_and_matches_the_linear_model(on_nose):
+    """Noise-free, compensatable errors: the tool's errors stay, and the exact machine is ``L δ``."""
+    mech, pset, classes, pool = on_nose
+    plan = make_plan(mech, pset, classes, CalibrationSettings(), pool, poses=40)
+    ho = holdout_poses(mech, pset, 20, np.random.default_rng(8))
+    maps = calibrated_maps(ho.maps, plan.H, plan.ident)
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta = np.zeros(len(pset))
+    delta[comp] = np.random.default_rng(2).standard_normal(len(comp)) * 1e-6
+    true = Machine(mech, pset, delta)
+    y, _ = model_positions(true, plan.maps.commands, plan.maps.q, plan.targets_m)
+    res = _identify(mech, pset, plan, y)
+    assert res.converged and res.rms_after_m <= 1e-12
+    u, ok = controller_commands(Machine(mech, pset, res.estimate), ho.maps.points_m, ho.maps.q)
+    err = pose_errors(true, u, ho.maps.q, ho.maps.points_m, ho.maps.rotations)
+    assert ok.all() and err.solved.all()
+    lin_p = np.einsum("kin,n->ki", maps.position, delta)
+    lin_r = np.einsum("kin,n->ki", maps.rotation, delta)
+    # the tool's own errors (run-out, length) are unseen at the nose: the calibration leaves their
+    # TCP columns as they were before it
+    tool = [i for i in comp if pset.sub_assembly(i) == "tool"]
+    assert tool and np.abs(plan.H[:, tool]).max() == 0.0
+    before = ho.maps.position_map()
+    np.testing.assert_allclose(maps.position[:, :, tool], before[:, :, tool], rtol=0, atol=1e-12)
+    dx = pset.names.index("tool.tcp.dx")
+    np.testing.assert_allclose(np.linalg.norm(maps.position[:, :, dx], axis=1), 1.0, rtol=1e-12)
+    assert np.abs(lin_p).max() > 1e-7
+    assert np.abs(err.position_m - lin_p).max() <= 1e-3 * np.abs(lin_p).max()
+    assert np.abs(err.rotation_rad - lin_r).max() <= 1e-3 * np.abs(lin_r).max()

@@ -120,7 +120,10 @@ class PoseMaps:
         return rows.reshape(m, 3 * t, 6)
 
     def measurement_rows(self, targets_m: np.ndarray) -> np.ndarray:
-        """Target position errors per unit parameter at held commands, shape (m, 3·t, n)."""
+        """Target position errors per unit parameter at held commands, shape (m, 3·t, n).
+
+        The targets move with :attr:`measurement_twist` (a hybrid's spindle, or the platform).
+        """
         return np.einsum("kij,kjn->kin", self.point_rows(targets_m), self.measurement_twist)
 
     def position_map(self) -> np.ndarray:
@@ -128,7 +131,8 @@ class PoseMaps:
 
         The task's part of it (:attr:`task_projection`), as ``J_total``.
         """
-        return self.task_projection @ self.measurement_rows(self.reference_point_m[None, :])
+        rows = self.point_rows(self.reference_point_m[None, :])
+        return self.task_projection @ np.einsum("kij,kjn->kin", rows, self.twist)
 
     def position_actuation(self) -> np.ndarray:
         """P's position change (the task's part) per unit command change, shape (m, 3, f)."""
