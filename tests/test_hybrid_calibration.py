@@ -20,7 +20,7 @@ from pkmtol.calibration.compensation import controller_commands, pose_errors
 from pkmtol.calibration.holdout import holdout_poses
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.hybrid_poses import with_tracker_on
-from pkmtol.calibration.identification import identify, model_positions
+from pkmtol.calibration.identification import identify, machine_poses, model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.measurement_files import measurements_csv
@@ -376,3 +376,49 @@ def test_nose_calibration_leaves_the_tools_errors_and_matches_the_linear_model(o
     assert np.abs(lin_p).max() > 1e-7
     assert np.abs(err.position_m - lin_p).max() <= 1e-3 * np.abs(lin_p).max()
     assert np.abs(err.rotation_rad - lin_r).max() <= 1e-3 * np.abs(lin_r).max()
+
+
+def test_cli_tracker_in_its_own_frame_round_trip_on_the_hybrid(hybrid, tmp_path, capsys):
+    """Tracker data in the tracker's own frame (``--tracker-frame identify``): the frame and the machine."""
+    mech, pset, grid, classes, _, _ = hybrid
+    settings = CalibrationSettings(candidates=60, tracker_frame="identify")
+    plan = make_plan(mech, pset, classes, settings, candidate_pool(mech, pset, settings, grid=grid))
+    inst = plan.instrument
+    rng = np.random.default_rng(3)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    pi = inst.draw_nuisance(rng)
+    o, R, _ = machine_poses(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q)
+    values = inst.perturb(inst.measure(o, R, plan.stations, pi), rng.standard_normal((len(o), 3)) * 1e-5)
+    path = tmp_path / "session.csv"
+    path.write_text(measurements_csv(mech, plan.maps.commands, values.reshape(len(values), 1, 3)))
+    out = tmp_path / "out"
+    assert (
+        main(
+            [
+                "calibrate",
+                str(HYBRID),
+                "--measurements",
+                str(path),
+                "--tracker-frame",
+                "identify",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert "nuisance parameter" in capsys.readouterr().out
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_in_sigma"] < 1.5
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    identified = Machine(mech, pset, estimate)
+    calibrated = load_mechanism(out / "calibrated")
+    cal_set = machine_parameter_set(calibrated, "urdf")
+    a = identified.forward_many(plan.maps.commands, plan.maps.q)
+    b = Machine(calibrated, cal_set, np.zeros(len(cal_set))).forward_many(
+        plan.maps.commands, plan.maps.q - identified.offsets
+    )
+    assert np.abs(a.translation - b.translation).max() <= 1e-12
+    assert np.abs(a.rotation - b.rotation).max() <= 1e-12
