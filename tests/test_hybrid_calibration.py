@@ -422,3 +422,42 @@ def test_cli_tracker_in_its_own_frame_round_trip_on_the_hybrid(hybrid, tmp_path,
     )
     assert np.abs(a.translation - b.translation).max() <= 1e-12
     assert np.abs(a.rotation - b.rotation).max() <= 1e-12
+
+
+def test_cli_simulate_on_the_hybrid_agrees_with_its_linear_model(tmp_path, capsys):
+    """``pkmtol calibrate <hybrid> --simulate``: exact study rows against the linear L δ + N ν rows."""
+    out = tmp_path / "out"
+    args = [
+        "calibrate",
+        str(HYBRID),
+        "--simulate",
+        "--machines",
+        "3",
+        "--holdout",
+        "20",
+        "--random-sets",
+        "1",
+    ]
+    assert main([*args, "--candidates", "60", "--no-figures", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "calibration study on exact kinematics: 3 machines × 20 held-out random poses" in text
+    doc = json.loads((out / "study.json").read_text())
+    before = doc["before_calibration"]["mean_dlambda_m"]
+    for case in doc["cases"]:
+        assert not case["unconverged_machines"]
+        assert case["linear_model_valid"] and case["row_gap_exact_linear_m"] < 0.05 * doc["target_m"]
+        assert case["exact"]["mean_dlambda_m"] < 0.05 * before  # the TCP is calibrated
+        assert case["exact"]["mean_tilt_rad"] > 1e-4  # a tracker on the TCP leaves the tool axis
+
+
+def test_cli_allocate_calibrated_hybrid(tmp_path, capsys):
+    """``pkmtol allocate <hybrid> --compensation calibrated``: what calibration leaves, by sub-assembly."""
+    out = tmp_path / "out"
+    args = ["allocate", str(HYBRID), "--compensation", "calibrated", "--compensate-with", "module"]
+    fast = ["--samples", "1000", "--verification-poses", "50", "--exact-samples", "10", "--no-figures"]
+    assert main([*args, *fast, "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "compensation: calibrated" in text and "Tolerances by sub-assembly" in text
+    doc = json.loads((out / "allocation.json").read_text())
+    classes = {p["class_in_mode"] for p in doc["parameters"]}
+    assert {"identified", "toleranced"} <= classes
