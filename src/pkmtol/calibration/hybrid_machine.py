@@ -167,15 +167,16 @@ class HybridMachine:
         # (a guess the solver takes as evaluated, so it must be this machine's own configuration)
         n0 = self.nq_module
         mod = self.chain.batch.inverse(np.array([g.module.p_m for g in nominal]), q_nominal[:, :n0])
-        guesses, failed = [], {}
+        guesses: list[HybridPose] = []
+        failed: dict[int, KinematicsError] = {}
         for k, g in enumerate(nominal):
-            if mod.errors[k] is not None:
-                failed[k] = mod.errors[k]
+            err = mod.errors[k]
+            if err is not None:
+                failed[k] = err
                 guesses.append(g)
                 continue
             guesses.append(self.chain.evaluate(assembled(self.chain.chain, mod.q[k]), q_nominal[k, n0:]))
-        solved = self.chain.inverse_many(targets, axes, guesses)
-        solved = [failed.get(k, s) for k, s in enumerate(solved)]
+        solved = [failed.get(k, s) for k, s in enumerate(self.chain.inverse_many(targets, axes, guesses))]
         b = len(targets)
         q = np.full((b, n0 + self.tool.nq), np.nan)
         rot = np.full((b, 3, 3), np.nan)
