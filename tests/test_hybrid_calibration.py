@@ -489,3 +489,28 @@ def test_tricept_wrist_calibrates_with_its_rank_tolerance():
         )
         assert np.abs(errs.position_m - linear).max() < 0.05 * mech.target_m
         assert np.linalg.norm(errs.position_m, axis=1).mean() < 0.5 * mech.target_m
+
+
+def test_locked_wrist_calibration_is_the_tcp_position_task():
+    """3-axis work (the wrist locked): three task rows, the module's actuators, exact = linear."""
+    mech = load_mechanism(HYBRID)
+    locked = mech.tool.with_locked({"wrist_c": np.pi / 2, "wrist_a": np.pi / 4})
+    mech = dataclasses.replace(mech, tool=locked, tool_directions=None)
+    pset = machine_parameter_set(mech, "dh")
+    grid = grid_sweep(mech, pset)
+    classes = grid.classify()
+    settings = CalibrationSettings(candidates=30)
+    pool = candidate_pool(mech, pset, settings, grid=grid)
+    assert pool.task_rows.shape[1:] == (3, 6) and pool.commands.shape[1] == 3
+    plan = make_plan(mech, pset, classes, settings, pool)
+    ho = holdout_poses(mech, pset, 20, np.random.default_rng(4))
+    maps = calibrated_maps(ho.maps, plan.H, plan.ident)
+    rng = np.random.default_rng(9)
+    sigma = np.where(np.array(pset.units) == "m", 1e-5, 5e-5) * np.array([c != "absorbed" for c in classes])
+    delta = rng.standard_normal(len(pset)) * sigma
+    noise = rng.standard_normal(plan.H.shape[0]) * settings.noise_m
+    errs, ident = calibrate_and_evaluate(mech, pset, plan, Machine(mech, pset, delta), noise, ho.maps)
+    assert ident.converged and errs.solved.all()
+    linear = maps.position @ delta + maps.position_noise @ noise
+    assert np.abs(linear).max() > 2e-6  # the noise and what the calibration cannot see
+    assert np.abs(errs.position_m - linear).max() < 1e-3 * mech.target_m  # second order (50 nm)
