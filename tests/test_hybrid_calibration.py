@@ -256,7 +256,10 @@ def test_calibrated_design_point_fails_as_often_as_claimed_on_exact_kinematics(c
 def test_cli_plan_writes_the_whole_machines_commands(tmp_path, capsys):
     plan = tmp_path / "plan.csv"
     args = ["calibrate", str(HYBRID), "--plan", str(plan), "--random-sets", "1", "--holdout", "20"]
-    assert main([*args, "--poses", "30", "--no-figures", "--out", str(tmp_path / "out")]) == 0
+    assert (
+        main([*args, "--poses", "30", "--candidates", "40", "--no-figures", "--out", str(tmp_path / "out")])
+        == 0
+    )
     rows = plan.read_text().splitlines()
     assert rows[0].split(",")[4:] == [
         "wrist.wrist_c [deg]",
