@@ -18,6 +18,7 @@ import pytest
 
 from pkmtol.calibration.compensation import controller_commands, pose_errors
 from pkmtol.calibration.holdout import holdout_poses
+from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.hybrid_poses import with_tracker_on
 from pkmtol.calibration.identification import identify, machine_poses, model_positions
@@ -28,6 +29,7 @@ from pkmtol.calibration.plan import candidate_pool, make_plan
 from pkmtol.calibration.postcal import calibrated_maps
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.study import calibrate_and_evaluate
+from pkmtol.calibration.urdf_export import write_calibrated_folder
 from pkmtol.cli import main
 from pkmtol.design.exact import grid_reliability
 from pkmtol.design.job import DesignOptions, allocate
@@ -494,7 +496,7 @@ def test_tricept_wrist_calibrates_with_its_rank_tolerance():
         assert np.linalg.norm(errs.position_m, axis=1).mean() < 0.5 * mech.target_m
 
 
-def test_locked_wrist_calibration_is_the_tcp_position_task():
+def test_locked_wrist_calibration_is_the_tcp_position_task(tmp_path):
     """3-axis work (the wrist locked): three task rows, the module's actuators, exact = linear."""
     mech = load_mechanism(HYBRID)
     locked = mech.tool.with_locked({"wrist_c": np.pi / 2, "wrist_a": np.pi / 4})
@@ -517,3 +519,18 @@ def test_locked_wrist_calibration_is_the_tcp_position_task():
     linear = maps.position @ delta + maps.position_noise @ noise
     assert np.abs(linear).max() > 2e-6  # the noise and what the calibration cannot see
     assert np.abs(errs.position_m - linear).max() < 1e-3 * mech.target_m  # second order (50 nm)
+    # its calibrated folder keeps the wrist locked, and its kinematics is the identified machine's
+    urdfs, toml = calibrated_files(mech, pset, ident.estimate)
+    for path, data in write_calibrated_folder(tmp_path / "calibrated", urdfs, toml):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    calibrated = load_mechanism(tmp_path / "calibrated")
+    assert calibrated.tool.actuated == () and calibrated.tool_directions is None
+    cal_set = machine_parameter_set(calibrated, "urdf")
+    identified = Machine(mech, pset, ident.estimate)
+    a = identified.forward_many(plan.maps.commands, plan.maps.q)
+    b = Machine(calibrated, cal_set, np.zeros(len(cal_set))).forward_many(
+        plan.maps.commands, plan.maps.q - identified.offsets
+    )
+    assert np.abs(a.translation - b.translation).max() <= 1e-12
+    assert np.abs(a.rotation - b.rotation).max() <= 1e-12

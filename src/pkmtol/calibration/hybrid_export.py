@@ -108,6 +108,11 @@ def _tool_tables(mechanism: Mechanism, tool: Tool) -> str:
         f'length = "{float(tool.length_m)!r} m"',
         f"home = {_list(tool.home)}",
     ]
+    if tool.locked:  # 3-axis work: the locked joints at their set values
+        lines += ["", "[tool.locked]"]
+        for j in tool.locked:
+            unit = "m" if tool.joint_kinds[j] == "P" else "rad"
+            lines.append(f'{tool.joint_names[j]} = "{float(tool.home[j])!r} {unit}"')
     return "\n".join(lines) + "\n"
 
 
