@@ -534,3 +534,32 @@ def test_locked_wrist_calibration_is_the_tcp_position_task(tmp_path):
     )
     assert np.abs(a.translation - b.translation).max() <= 1e-12
     assert np.abs(a.rotation - b.rotation).max() <= 1e-12
+
+
+def test_cli_measurements_of_a_tracker_on_the_nose(on_nose, tmp_path, capsys):
+    """``--tracker-on nose --measurements``: the spindle's readings identify the machine (not the tool)."""
+    mech, pset, classes, pool = on_nose
+    plan = make_plan(mech, pset, classes, CalibrationSettings(), pool, poses=30)
+    rng = np.random.default_rng(5)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    y, _ = model_positions(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q, plan.targets_m)
+    path = tmp_path / "measurements.csv"
+    path.write_text(measurements_csv(mech, plan.maps.commands, y + rng.standard_normal(y.shape) * 1e-5))
+    out = tmp_path / "out"
+    assert (
+        main(
+            ["calibrate", str(HYBRID), "--tracker-on", "nose", "--measurements", str(path), "--out", str(out)]
+        )
+        == 0
+    )
+    capsys.readouterr()
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_m"] < 1.2e-5 < doc["rms_before_m"]
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    tool = [i for i in range(len(pset)) if pset.sub_assembly(i) == "tool"]
+    assert np.all(estimate[tool] == 0.0)  # the tool's own errors are not seen at the nose
+    # the identified machine's nose is where the tracker saw it, to the noise
+    fit, _ = model_positions(Machine(mech, pset, estimate), plan.maps.commands, plan.maps.q, plan.targets_m)
+    assert np.sqrt(np.mean((fit - y) ** 2)) < 2e-5
