@@ -426,7 +426,8 @@ CASES: list[Case] = [
     # ---- hybrid machines: a tool chain on the platform (docs/hybrid.md)
     Case("Hybrid machines", "`--tool-length` on a robot without a `[tool]` chain", cli("check", "{robot}", "--tool-length", "150mm"), IA, ("--tool-length 150mm", "has no tool chain"), {"argument": "--tool-length"}),
     Case("Hybrid machines", "`--lock-wrist` that leaves a wrist joint free", cli("check", str(HYBRID), "--lock-wrist", "wrist_a=45deg"), IA, ("--lock-wrist wrist_a=45deg", "missing wrist_c"), {"argument": "--lock-wrist"}),
-    Case("Hybrid machines", "`pkmtol calibrate` on a hybrid machine", cli("calibrate", str(HYBRID)), E.InvalidRequestError, ("r2rps_ups_wrist", "is a hybrid machine", "not available")),
+    Case("Hybrid machines", "`calibrate --tracker-on nose` on a robot without a `[tool]` chain", cli("calibrate", "{robot}", "--tracker-on", "nose"), E.InvalidRequestError, ("--tracker-on nose", "has no tool chain")),
+    Case("Hybrid machines", "`pkmtol calibrate` of a hybrid machine with a ballbar", cli("calibrate", str(HYBRID), "--instrument", "ballbar"), E.InvalidRequestError, ("r2rps_ups_wrist", "is a hybrid machine", "not a ballbar")),
     Case("Hybrid machines", "a `[tool]` table with `task.kind = \"position\"`", toml("[design]", '[tool]\nurdf = "limb4.urdf"\nnose_frame = "platform"\n\n[design]'), MF, ("task.kind", "a [tool] table needs task.kind = 'tool'")),
 ]  # fmt: skip
 

@@ -81,7 +81,8 @@ def pose_errors(
                 continue
             pos[k] = machine.mechanism.task_error(sols.p_m[j] - targets_m[k])
             rk = rotations[k]
-            rot[k] = rk @ pin.log3(rk.T @ sols.rotation[j])
+            task_rot = getattr(sols, "task_rotation", sols.rotation)  # a hybrid: the TCP frame's
+            rot[k] = rk @ pin.log3(rk.T @ task_rot[j])
             ok[k] = True
     return PoseErrors(position_m=pos, rotation_rad=rot, solved=ok)
 

@@ -6,10 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_poses import hybrid_holdout_sweep
 from pkmtol.calibration.maps import PoseMaps, pose_maps
 from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.sweep import Sweep, sweep
 from pkmtol.exceptions import InvalidRequestError, KinematicsError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -46,6 +47,9 @@ def holdout_poses(
     """
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise InvalidRequestError(f"the number of held-out poses must be an integer ≥ 1, got {count!r}")
+    if mechanism.tool is not None:  # a hybrid: random TCP targets × tool axes
+        hsw, skipped = hybrid_holdout_sweep(mechanism, pset, count, rng, chain)
+        return _holdout(hsw, chain or ClosedChain(mechanism), mechanism, skipped)
     chain = chain or ClosedChain(mechanism)
     grid = mechanism.task_space.grid()
     home = chain.home()
@@ -67,6 +71,10 @@ def holdout_poses(
     if not points:
         raise InvalidRequestError("no random task-space target is reachable; check the task space")
     sw = sweep(mechanism, pset, np.array(points), chain, guesses=np.array(guesses))
+    return _holdout(sw, chain, mechanism, skipped)
+
+
+def _holdout(sw: Sweep, chain: ClosedChain, mechanism: Mechanism, skipped: int) -> Holdout:
     return Holdout(
         maps=pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection),
         correction=np.array([s.correction for s in sw.separations]),

@@ -263,7 +263,7 @@ def identify_with(
 
     def rows_at(o: np.ndarray, R: np.ndarray, pi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rows = inst.twist_rows(o, R, st, pi)
-        H = np.einsum("kra,kan->krn", rows, maps.twist).reshape(N * r, -1)
+        H = np.einsum("kra,kan->krn", rows, maps.measurement_twist).reshape(N * r, -1)
         return H, inst.nuisance_rows(o, R, st, pi).reshape(N * r, -1)
 
     H, Hp = rows_at(origin, rot, pi0)

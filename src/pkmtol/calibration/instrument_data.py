@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_poses import measured_sweep
 from pkmtol.calibration.identifiability import Identifiability, identifiability
 from pkmtol.calibration.identification import Identification, identify_with
 from pkmtol.calibration.instrument_files import InstrumentMeasurements
@@ -26,6 +27,7 @@ from pkmtol.calibration.real_data import nominal_poses
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.task import grid_sweep
 from pkmtol.exceptions import MeasurementFileError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -78,7 +80,7 @@ def calibrate_instrument_data(
     """
     path = Path(path)
     chain = chain or ClosedChain(mechanism)
-    grid = grid or sweep(mechanism, pset, mechanism.task_space.grid(), chain)
+    grid = grid or grid_sweep(mechanism, pset, chain)  # a hybrid's: TCP × tool axis
     inst = instrument_for(settings, mechanism)
     scale = settings.manufacturing_sigma(pset) if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, settings.manufacturing_sigma(pset))
@@ -97,9 +99,12 @@ def calibrate_instrument_data(
         settings.noise_m,
         settings.rank_tolerance,
     )
-    q = nominal_poses(mechanism, chain, grid, measurements.commands, path, measurements.lines)
-    points = np.array([chain.forward(u, qk).p_m for u, qk in zip(measurements.commands, q, strict=True)])
-    sw = sweep(mechanism, pset, points, chain, guesses=q)
+    if mechanism.tool is not None:  # a hybrid: its TCP at the commands (calibration/hybrid_poses.py)
+        sw: Sweep = measured_sweep(mechanism, pset, grid, measurements.commands, path, measurements.lines)
+    else:
+        q = nominal_poses(mechanism, chain, grid, measurements.commands, path, measurements.lines)
+        points = np.array([chain.forward(u, qk).p_m for u, qk in zip(measurements.commands, q, strict=True)])
+        sw = sweep(mechanism, pset, points, chain, guesses=q)
     maps = pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     maps = replace(maps, stations=measurements.stations)
     system = linear_system(inst, maps, settings.noise_m)

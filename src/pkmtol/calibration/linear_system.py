@@ -70,7 +70,7 @@ def linear_system(
     pi = np.zeros(instrument.nuisance_count) if nuisance is None else np.asarray(nuisance, dtype=float)
     origin, rot, st = maps.origins_m, maps.rotations, maps.station_index
     rows = instrument.twist_rows(origin, rot, st, pi)  # (N, r, 6)
-    H = np.einsum("kra,kan->krn", rows, maps.twist).reshape(-1, maps.twist.shape[2])
+    H = np.einsum("kra,kan->krn", rows, maps.measurement_twist).reshape(-1, maps.twist.shape[2])
     Hp = instrument.nuisance_rows(origin, rot, st, pi).reshape(H.shape[0], -1)
     w = value_weights(instrument, len(maps), reference_noise_m)
     Hw = H * w[:, None]

@@ -26,7 +26,17 @@ class Machine:
         mechanism: The nominal mechanism.
         pset: Its parameter set.
         delta: Shape (n,): the errors of every parameter [m, rad] (zeros: the nominal machine).
+
+    A mechanism with a tool chain gets a
+    :class:`~pkmtol.calibration.hybrid_machine.HybridMachine` (the TCP, the whole machine's joints).
     """
+
+    def __new__(cls, mechanism: Mechanism, pset: ParameterSet, delta: np.ndarray) -> Machine:  # noqa: D102
+        if mechanism.tool is not None and cls is Machine:  # a hybrid: the module and the tool chain
+            from pkmtol.calibration.hybrid_machine import HybridMachine
+
+            return HybridMachine(mechanism, pset, delta)  # type: ignore[return-value]
+        return super().__new__(cls)
 
     def __init__(self, mechanism: Mechanism, pset: ParameterSet, delta: np.ndarray) -> None:
         self.mechanism = mechanism

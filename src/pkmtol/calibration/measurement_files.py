@@ -8,6 +8,9 @@ Plan (written by ``pkmtol calibrate --plan FILE``)::
 
     pose,limb1.limb1_p3 [mm],limb2.limb2_p3 [mm],limb3.limb3_p3 [mm],P_x [mm],P_y [mm],P_z [mm]
 
+(a hybrid machine: the wrist's actuators ``wrist.<joint>`` after the module's, and the TCP
+``TCP_x, TCP_y, TCP_z``; the targets sit in the TCP frame, 0 = the TCP).
+
 Measurements (read by ``pkmtol calibrate --measurements FILE``), one row per measured target::
 
     pose,limb1.limb1_p3 [mm],...,target,x [mm],y [mm],z [mm]
@@ -40,21 +43,30 @@ SAME_POSE = 1e-9
 
 
 def actuator_columns(mechanism: Mechanism) -> list[tuple[str, str]]:
-    """``(column name, kind)`` of every actuated joint, in the mechanism's actuator order (kind R or P)."""
+    """``(column name, kind)`` of every actuated joint, in the mechanism's actuator order (kind R or P).
+
+    A hybrid machine: the module's, then the wrist's (``wrist.<joint>``).
+    """
     out = []
     for limb in mechanism.limbs:
         for a in limb.actuated:
             out.append((f"{limb.name}.{limb.joint_names[a]}", limb.joint_kinds[a]))
+    tool = mechanism.tool
+    if tool is not None:
+        out += [(f"wrist.{tool.joint_names[a]}", tool.joint_kinds[a]) for a in tool.actuated]
     return out
 
 
 def plan_csv(mechanism: Mechanism, commands: np.ndarray, points_m: np.ndarray) -> str:
-    """The plan as CSV text: commands (mm or deg) and the nominal P (mm), one row per pose."""
+    """The plan as CSV text: commands (mm or deg) and the nominal P (mm; a hybrid's TCP), one row a pose."""
     cols = actuator_columns(mechanism)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
+    point = "TCP" if mechanism.tool is not None else "P"
     w.writerow(
-        ["pose"] + [f"{c} [{'mm' if k == 'P' else 'deg'}]" for c, k in cols] + [f"P_{a} [mm]" for a in "xyz"]
+        ["pose"]
+        + [f"{c} [{'mm' if k == 'P' else 'deg'}]" for c, k in cols]
+        + [f"{point}_{a} [mm]" for a in "xyz"]
     )
     for i, (u, p) in enumerate(zip(commands, points_m, strict=True)):
         vals = [

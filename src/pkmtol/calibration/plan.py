@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_poses import hybrid_pool
 from pkmtol.calibration.identifiability import Identifiability, identifiability
 from pkmtol.calibration.instruments import Instrument, instrument_for
 from pkmtol.calibration.linear_system import LinearSystem, linear_system
@@ -94,6 +95,8 @@ def candidate_pool(
     Raises:
         InvalidRequestError: the mechanism reaches none of the instrument's candidates.
     """
+    if mechanism.tool is not None:  # a hybrid: TCP × tool axis, a tracker on the TCP
+        return hybrid_pool(mechanism, pset, settings, chain, grid)
     chain = chain or ClosedChain(mechanism)
     grid_points = mechanism.task_space.grid()
     grid = grid if grid is not None else sweep(mechanism, pset, grid_points, chain)
@@ -152,6 +155,12 @@ def concat_maps(a: PoseMaps, b: PoseMaps) -> PoseMaps:
         task_projection=a.task_projection,
         stations=np.concatenate([a.station_index, b.station_index]) if both else None,
         groups=np.concatenate([a.group_index, b.group_index]) if groups else None,
+        task_rows=None
+        if a.task_rows is None or b.task_rows is None
+        else np.concatenate([a.task_rows, b.task_rows]),
+        measured_twist=None
+        if a.measured_twist is None or b.measured_twist is None
+        else np.concatenate([a.measured_twist, b.measured_twist]),
     )
 
 

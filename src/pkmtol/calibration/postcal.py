@@ -11,7 +11,8 @@ true machine then moves by ``$_k = T_k δ + A_k Δu_k``:
 
 whose position rows at P are DESIGN.md's ``L_k = J_k − J_k G H`` and ``N_k = −J_k G`` (when the
 actuators move P in every direction, ``C_k C_k⁺ = I``), and whose rotation rows are what the
-calibration leaves in the platform's orientation.
+calibration leaves in the platform's orientation. A hybrid machine: ``J_k`` and ``C_k`` are the
+rows of its task (the TCP position and the tool axis across its target) and the twist is the TCP's.
 """
 
 from __future__ import annotations
@@ -64,12 +65,11 @@ def calibrated_maps(
         prior_sigma: The MAP prior (None: least squares).
     """
     G = estimator(H, ident, prior_sigma)
-    J = evaluation.position_map()  # (m, 3, n)
-    C = evaluation.position_actuation()  # (m, 3, f)
-    C_pinv = np.linalg.pinv(C)  # (m, f, 3)
-    AC = np.einsum("kaf,kfb->kab", evaluation.actuation, C_pinv)  # (m, 6, 3)
-    JG = np.einsum("kin,nM->kiM", J, G)  # (m, 3, M)
-    JGH = np.einsum("kiM,Mn->kin", JG, H)  # (m, 3, n)
+    J, C = evaluation.task_maps()  # (m, r, n), (m, r, f): P's position, or a hybrid's task
+    C_pinv = np.linalg.pinv(C)  # (m, f, r)
+    AC = np.einsum("kaf,kfb->kab", evaluation.actuation, C_pinv)  # (m, 6, r)
+    JG = np.einsum("kin,nM->kiM", J, G)  # (m, r, M)
+    JGH = np.einsum("kiM,Mn->kin", JG, H)  # (m, r, n)
     twist = evaluation.twist - np.einsum("kai,kin->kan", AC, JGH)  # (m, 6, n)
     noise = -np.einsum("kai,kiM->kaM", AC, JG)  # (m, 6, M)
     rows = evaluation.point_rows(evaluation.reference_point_m[None, :])  # (m, 3, 6)

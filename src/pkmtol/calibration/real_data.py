@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.calibration.hybrid_poses import measured_sweep
 from pkmtol.calibration.identifiability import Identifiability, identifiability
 from pkmtol.calibration.identification import Identification, identify
 from pkmtol.calibration.maps import PoseMaps, pose_maps
@@ -20,6 +21,7 @@ from pkmtol.calibration.measurement_files import Measurements, actuator_columns
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep, sweep
+from pkmtol.error_model.task import grid_sweep
 from pkmtol.exceptions import KinematicsError, MeasurementFileError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -129,7 +131,7 @@ def calibrate_measurements(
     """
     path = Path(path)
     chain = chain or ClosedChain(mechanism)
-    grid = grid or sweep(mechanism, pset, mechanism.task_space.grid(), chain)
+    grid = grid or grid_sweep(mechanism, pset, chain)  # a hybrid's: TCP × tool axis
     targets = settings.targets(mechanism)
     scale = settings.manufacturing_sigma(pset) if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, settings.manufacturing_sigma(pset))
@@ -146,9 +148,12 @@ def calibrate_measurements(
         settings.noise_m,
         settings.rank_tolerance,
     )
-    q = nominal_poses(mechanism, chain, grid, measurements.commands, path, measurements.lines)
-    points = np.array([chain.forward(u, qk).p_m for u, qk in zip(measurements.commands, q, strict=True)])
-    sw = sweep(mechanism, pset, points, chain, guesses=q)
+    if mechanism.tool is not None:  # a hybrid: its TCP at the commands (calibration/hybrid_poses.py)
+        sw: Sweep = measured_sweep(mechanism, pset, grid, measurements.commands, path, measurements.lines)
+    else:
+        q = nominal_poses(mechanism, chain, grid, measurements.commands, path, measurements.lines)
+        points = np.array([chain.forward(u, qk).p_m for u, qk in zip(measurements.commands, q, strict=True)])
+        sw = sweep(mechanism, pset, points, chain, guesses=q)
     maps = pose_maps(sw, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
     H = maps.measurement_rows(targets).reshape(-1, len(pset))
     if H.shape[0] < pool.rank:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.tool_sweep import TRACKER_POINTS, tracker_on
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.units import parse_angle, parse_length
@@ -73,6 +74,7 @@ TABLE_KEYS = (
     "circle_points",
     "artifact_radius",
     "approach_directions",
+    "tracker_on",
 )
 
 
@@ -225,11 +227,16 @@ class CalibrationSettings:
     def targets(self, mechanism: Mechanism) -> np.ndarray:
         """The tracker targets (t, 3) in the platform frame [m]: ``targets_m``, or P alone.
 
-        ``tracker-multi`` without ``targets_m``: P and :data:`MULTI_OFFSETS_M` from it.
+        ``tracker-multi`` without ``targets_m``: P and :data:`MULTI_OFFSETS_M` from it. A hybrid
+        machine (a ``[tool]`` chain): the frame is the TCP frame, and the default target the TCP,
+        or with ``tracker_on = "nose"`` the spindle nose ``(0, 0, −L)``.
         """
         if len(self.targets_m):
             return np.asarray(self.targets_m, dtype=float).reshape(-1, 3)
         p = np.asarray(mechanism.reference_point_m, dtype=float)
+        if mechanism.tool is not None:
+            on_nose = tracker_on(mechanism) == "nose"
+            p = np.array([0.0, 0.0, -mechanism.tool.length_m if on_nose else 0.0])
         if self.instrument == "tracker-multi":
             return p[None, :] + np.asarray(MULTI_OFFSETS_M)
         return p[None, :]
@@ -318,8 +325,12 @@ def _read(key: str, value: Any) -> dict[str, Any]:
         if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
             raise InvalidRequestError(f"expected a list of planes (xy, yz, zx), got {value!r}")
         return {"circle_planes": tuple(value)}
-    if key in ("instrument", "tracker_frame") and not isinstance(value, str):
+    if key in ("instrument", "tracker_frame", "tracker_on") and not isinstance(value, str):
         raise InvalidRequestError(f"expected a name, got {value!r}")
+    if key == "tracker_on":  # a hybrid's: read from the mechanism's table (error_model.tool_sweep.tracker_on)
+        if value not in TRACKER_POINTS:
+            raise InvalidRequestError(f"expected one of {', '.join(TRACKER_POINTS)}, got {value!r}")
+        return {}
     if key == "controller":
         if isinstance(value, list):
             if not all(isinstance(x, str) for x in value):

@@ -19,7 +19,7 @@ from pkmtol.calibration.prediction import Prediction, predict
 from pkmtol.calibration.settings import CONTROLLERS, SELECTIONS, CalibrationSettings
 from pkmtol.calibration.study import StudyCase, StudyResult, run_study, study_context
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.error_model.sweep import sweep
+from pkmtol.error_model.task import grid_sweep
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.executor import Executor
 from pkmtol.kinematics.closed_chain import ClosedChain
@@ -311,4 +311,4 @@ def machine_plans(
 
 def grid_classes(mechanism: Mechanism, pset: ParameterSet) -> list[str]:
     """The class of every parameter over the task-space grid (``Sweep.classify``)."""
-    return sweep(mechanism, pset, mechanism.task_space.grid(), ClosedChain(mechanism)).classify()
+    return grid_sweep(mechanism, pset, ClosedChain(mechanism)).classify()  # a hybrid's: TCP × axis

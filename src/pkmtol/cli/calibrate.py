@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol.calibration.fit_check import FitVerdict, PoorFitError, fit_verdict
+from pkmtol.calibration.hybrid_export import calibrated_files
+from pkmtol.calibration.hybrid_poses import check_instrument, with_tracker_on
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
@@ -17,15 +19,21 @@ from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.study_limits import check_calibration_request
 from pkmtol.calibration.tolerance_file import read_tolerances
-from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs, write_calibrated_folder
+from pkmtol.calibration.urdf_export import write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
 from pkmtol.design.budget import available_memory
 from pkmtol.design.job import DesignOptions, allocate
-from pkmtol.error_model.parameters import ParameterSet, default_set, parameter_set
-from pkmtol.error_model.task import hybrid_calibration_refusal
-from pkmtol.exceptions import FiguresError, InvalidArgumentError, InvalidRequestError, OutputError
+from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.task import machine_parameter_set
+from pkmtol.error_model.tool_sweep import TRACKER_POINTS
+from pkmtol.exceptions import (
+    FiguresError,
+    InvalidArgumentError,
+    InvalidRequestError,
+    OutputError,
+)
 from pkmtol.executor import Executor
 from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
@@ -79,6 +87,13 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "plan of its own half of the candidate pool) and report the plan-to-plan spread",
     )
     p.add_argument("--measurements", type=Path, default=None, help="identify from this measurement CSV")
+    p.add_argument(
+        "--tracker-on",
+        choices=TRACKER_POINTS,
+        default=None,
+        help="a hybrid machine: the tracker's targets on the TCP frame (default) or on the spindle nose "
+        "(the tool's own errors do not move them); [calibration] tracker_on",
+    )
     p.add_argument(
         "--tolerances",
         type=Path,
@@ -160,8 +175,7 @@ def _instrument_data(
         (out / "residuals.csv", instrument_residuals_csv(cal).encode()),
     ]
     try:
-        urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
-        toml = calibrated_toml(mech, pset, cal.result.estimate)
+        urdfs, toml = calibrated_files(mech, pset, cal.result.estimate)  # a hybrid's tool chain too
         files += write_calibrated_folder(out / "calibrated", urdfs, toml)
     except Exception as err:  # noqa: BLE001 - reported, the identification stands
         print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
@@ -194,8 +208,8 @@ def _json_with(doc: dict, verdict: FitVerdict) -> bytes:
 
 def _run(args: argparse.Namespace) -> int:
     mech = apply_tool_options(load_mechanism(args.robot), args)
-    if mech.tool is not None:
-        raise InvalidRequestError(hybrid_calibration_refusal(mech.name))
+    if args.tracker_on is not None:  # a hybrid's tracker on the TCP or the spindle nose
+        mech = with_tracker_on(mech, args.tracker_on)
     for name, value, low in (
         ("--machines", args.machines, 1),
         ("--holdout", args.holdout, 1),
@@ -215,8 +229,10 @@ def _run(args: argparse.Namespace) -> int:
             "with --measurements only a --prior identification reads it (the σ of the prior); give "
             "--prior (or [calibration] prior = true), or leave --tolerances out",
         )
+    if mech.tool is not None:  # a hybrid: a tracker on the TCP frame (calibration/hybrid_poses.py)
+        check_instrument(mech, settings)
     executor = executor_from(args)  # a bad --workers or an unreachable --dask fails before any work
-    pset = parameter_set(mech, args.pset or default_set(mech))
+    pset = machine_parameter_set(mech, args.pset)  # a hybrid's: the module's, then the tool chain's
     check_calibration_request(
         len(pset),
         3 * settings.targets(mech).shape[0],
@@ -306,8 +322,7 @@ def _outputs(
             (out / "residuals.csv", residuals_csv(cal).encode()),
         ]
         try:
-            urdfs = calibrated_urdfs(mech, pset, cal.result.estimate)
-            toml = calibrated_toml(mech, pset, cal.result.estimate)
+            urdfs, toml = calibrated_files(mech, pset, cal.result.estimate)  # a hybrid's tool chain too
             files += write_calibrated_folder(out / "calibrated", urdfs, toml)
         except Exception as err:  # noqa: BLE001 - reported, the identification stands
             print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)

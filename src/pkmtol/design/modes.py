@@ -26,7 +26,7 @@ from pkmtol.error_model.compensation import COMPENSATIONS, AccuracyMaps, mode_ma
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import ZERO_TOLERANCE, Sweep
 from pkmtol.error_model.table import ErrorTable, error_table
-from pkmtol.error_model.task import grid_sweep, hybrid_calibration_refusal, machine_parameter_set
+from pkmtol.error_model.task import grid_sweep, machine_parameter_set
 from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.mechanism import Mechanism
@@ -161,8 +161,6 @@ def mode_setup(
     if mode == "none":
         mode_classes = ["absorbed" if c == "absorbed" else "toleranced" for c in classes]
         return ModeSetup(mode, mode_maps(grid, "none"), nonabs, mode_classes, None, np.zeros(0, dtype=int))
-    if mechanism.tool is not None:  # the calibration stage models the module's P (docs/hybrid.md)
-        raise InvalidRequestError(hybrid_calibration_refusal(mechanism.name))
     settings = settings or CalibrationSettings()
     pool = candidate_pool(mechanism, pset, settings, chain, grid=grid)
     plan = make_plan(mechanism, pset, classes, settings, pool, scale)

@@ -27,16 +27,6 @@ from pkmtol.kinematics.hybrid import HybridChain
 from pkmtol.model.mechanism import Mechanism
 
 
-def hybrid_calibration_refusal(name: str) -> str:
-    """Why a hybrid machine cannot be calibrated yet, and what to do instead."""
-    return (
-        f"'{name}' is a hybrid machine (a [tool] chain): calibration (pkmtol calibrate, --compensation "
-        "calibrated) models a tracker on the module's point P and is not available for the whole "
-        "machine yet; use --compensation ideal or none, or calibrate the module alone (its folder "
-        "without [tool], e.g. robots/r2rps_ups)"
-    )
-
-
 def machine_parameter_set(mechanism: Mechanism, kind: str | None = None) -> ParameterSet:
     """The module's set (``kind``, default :func:`default_set`), then a hybrid's tool parameters."""
     k = kind or default_set(mechanism)

@@ -212,6 +212,9 @@ class ToolSeparation(Separation):
             compensation [m, rad per unit].
         task_rows: Shape (5, 6): ``S``.
         scope: ``machine`` or ``module`` (see the module docstring).
+        frame_map: Shape (6, n): the part of ``twist_map`` that moves the TCP frame alone: the
+            tool's own errors (``tool.*``: run-out, length, tilt of the tool in the spindle); a
+            point fixed on the spindle moves by ``twist_map − frame_map``.
     """
 
     hybrid: HybridPose | None = None
@@ -219,6 +222,7 @@ class ToolSeparation(Separation):
     task_map: np.ndarray | None = None
     task_rows: np.ndarray | None = None
     scope: str = "machine"
+    frame_map: np.ndarray | None = None
 
 
 def tool_columns(
@@ -263,6 +267,12 @@ def tool_separation(
     a_map = np.zeros((6, n))
     a_map[:, :n0] = shift @ module.twist_map
     a_map[:, pset.tool_slice] = tool_columns(tool, pset, hpose)
+    assert pset.tool_selection is not None
+    frame_map = np.zeros((6, n))  # the tool's own errors (``tool.*``: its placement in the spindle)
+    frame_map[:, pset.tool_slice] = world_axes(
+        hpose.oMt.rotation, pset.tool_selection[6 * tool.nq : 6 * tool.nq + 6]
+    )
+    frame_map[:, [i for i in range(n) if pset.sub_assembly(i) != "tool"]] = 0.0
     assert module.actuation_map is not None
     jt = pin.computeFrameJacobian(
         tool.model, tool.model.createData(), hpose.q_tool, tool.tcp_frame, pin.LOCAL
@@ -320,6 +330,7 @@ def tool_separation(
         task_map=sa,
         task_rows=s,
         scope=scope,
+        frame_map=frame_map,
     )
 
 

@@ -24,6 +24,8 @@ from pkmtol.model.mechanism import Mechanism
 
 #: Poses separated together.
 CHUNK = 512
+#: Where a hybrid's calibration tracker targets can sit (``[calibration] tracker_on``).
+TRACKER_POINTS = ("tcp", "nose")
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,11 +36,34 @@ class ToolSweep(Sweep):
         axes: Shape (m, 3): the target tool axes (None for a locked wrist).
         hybrid_poses: The machine's poses.
         scope: ``machine`` or ``module`` (:mod:`pkmtol.error_model.tool_chain`).
+        tool_actuated: The actuated joints of the tool chain (indices into its q).
+        tracker_on: Where a calibration's tracker targets sit: ``tcp`` (on the TCP frame) or
+            ``nose`` (on the spindle: the tool's own errors do not move them);
+            ``[calibration] tracker_on`` of the mechanism.
     """
 
     axes: np.ndarray | None = None
     hybrid_poses: tuple[HybridPose, ...] = ()
     scope: str = "machine"
+    tool_actuated: tuple[int, ...] = ()
+    tracker_on: str = "tcp"
+
+
+def tracker_on(mechanism: Mechanism) -> str:
+    """Where a calibration's tracker targets sit on a hybrid: ``tcp`` (default) or ``nose``.
+
+    ``[calibration] tracker_on`` (``pkmtol calibrate --tracker-on``).
+
+    Raises:
+        InvalidRequestError: another value.
+    """
+    value = (mechanism.extra.get("calibration") or {}).get("tracker_on", "tcp")
+    if value not in TRACKER_POINTS:
+        raise InvalidRequestError(
+            f"calibration.tracker_on = {value!r}: use one of {', '.join(TRACKER_POINTS)} (the TCP frame, "
+            "or the spindle nose: targets that the tool's own errors do not move)"
+        )
+    return str(value)
 
 
 def tool_task_grid(mechanism: Mechanism) -> tuple[np.ndarray, np.ndarray | None]:
@@ -121,6 +146,8 @@ def hybrid_sweep(
         axes=None if axes is None else np.asarray(axes, dtype=float).reshape(m, 3),
         hybrid_poses=tuple(poses),
         scope=scope,
+        tool_actuated=tuple(hc.actuated),
+        tracker_on=tracker_on(mechanism),
     )
 
 

@@ -88,6 +88,7 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "circle_points",
             "artifact_radius",
             "approach_directions",
+            "tracker_on",
         }
     ),
     # read by pkmtol.model.drawing (its TABLE_KEYS; tests/test_signoff.py keeps them equal)
