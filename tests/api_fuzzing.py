@@ -1,3 +1,4 @@
+# ruff: noqa: E501  (the target table: one call per line)
 """A seeded fuzzer of the Python API: every public callable, one bad argument at a time.
 
 Each target (:data:`TARGETS`) names a public function, constructor or method and builds one good
@@ -763,7 +764,7 @@ def _targets() -> list[Target]:  # noqa: C901 (one table)
 def _actuated_names(f: Fixtures) -> list[str]:
     cm = f.constrained
     names = []
-    for limb, sl in zip(f.mech.limbs, cm.q_slices, strict=True):
+    for limb in f.mech.limbs:
         names += [limb.joint_names[a] for a in limb.actuated]
     return names
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
@@ -192,3 +192,69 @@ def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...]) -> np.n
         want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
         raise InvalidArgumentError(name, f"shape {arr.shape}", f"expected an array of shape {want}")
     return arr
+
+
+def optional(check: Any, name: str, value: Any, *args: Any, **kwargs: Any) -> Any:
+    """``None`` if ``value`` is None, else ``check(name, value, *args, **kwargs)``.
+
+    >>> optional(number, "k", None) is None
+    True
+    """
+    return None if value is None else check(name, value, *args, **kwargs)
+
+
+def generator(name: str, value: Any) -> np.random.Generator:
+    """``value`` if it is a :class:`numpy.random.Generator` (``np.random.default_rng(seed)``)."""
+    return instance(name, value, np.random.Generator, "a numpy Generator, e.g. np.random.default_rng(0)")
+
+
+def index(name: str, value: Any, size: int) -> int:
+    """``value`` as an index into ``size`` things (``0 ≤ value < size``)."""
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise InvalidArgumentError(name, value, f"expected a whole number from 0 to {size - 1}")
+    if not 0 <= int(value) < size:
+        raise InvalidArgumentError(name, value, f"must be from 0 to {size - 1}")
+    return int(value)
+
+
+def joint_values(name: str, value: Any) -> dict[str, float]:
+    """``value`` as a mapping of joint names to finite values [rad or m] (``{"limb1_p3": 0.8}``)."""
+    if not isinstance(value, Mapping):
+        raise InvalidArgumentError(name, value, "expected a mapping of joint names to values")
+    out = {}
+    for key, v in value.items():
+        if not isinstance(key, str):
+            raise InvalidArgumentError(name, value, f"expected joint names (strings) as keys, found {key!r}")
+        out[key] = number(f"{name}[{key!r}]", v)
+    return out
+
+
+def lengths(name: str, value: Any) -> dict[str, float]:
+    """``value`` as a mapping of names to positive lengths [m] (``{"limb1_p3": 0.2}``)."""
+    if not isinstance(value, Mapping):
+        raise InvalidArgumentError(name, value, "expected a mapping of names to lengths [m], e.g. {'j': 0.1}")
+    out = {}
+    for key, v in value.items():
+        if not isinstance(key, str):
+            raise InvalidArgumentError(name, value, f"expected names (strings) as keys, found {key!r}")
+        out[key] = length_m(f"{name}[{key!r}]", v)
+        within_length(f"{name}[{key!r}]", v)
+    return out
+
+
+def instances(
+    name: str, value: Any, kind: type | tuple[type, ...], what: str, size: int | None = None
+) -> list[Any]:
+    """``value`` as a list of ``kind`` (``size`` of them if given); else InvalidArgumentError."""
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
+        raise InvalidArgumentError(name, value, f"expected a list of {what}")
+    if size is not None and len(value) != size:
+        raise InvalidArgumentError(name, f"{len(value)} items", f"expected {size} ({what}), one per limb")
+    for k, v in enumerate(value):
+        instance(f"{name}[{k}]", v, kind, what)
+    return list(value)
+
+
+def text_or_none(name: str, value: Any) -> str | None:
+    """``value`` if it is None or a non-empty string."""
+    return optional(text, name, value)
