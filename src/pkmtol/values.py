@@ -124,8 +124,11 @@ def vector(name: str, value: Any, n: int) -> np.ndarray:
     return arr
 
 
-def array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
-    """``value`` as a float array of finite numbers (``ndim`` dimensions if given)."""
+def array(name: str, value: Any, ndim: int | None = None, finite: bool = True) -> np.ndarray:
+    """``value`` as a float array of finite numbers (``ndim`` dimensions if given).
+
+    ``finite=False`` lets nan and inf through (arrays that an iteration may have made).
+    """
     if isinstance(value, str | bytes | bool) or value is None or isinstance(value, dict):
         raise InvalidArgumentError(name, value, "expected numbers (a list or an array)")
     if isinstance(value, np.ndarray):
@@ -139,7 +142,7 @@ def array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
         raise InvalidArgumentError(name, value, "expected numbers only (rows of equal length)") from None
     if ndim is not None and arr.ndim != ndim:
         raise InvalidArgumentError(name, value, f"expected {ndim} dimension(s), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if finite and not np.all(np.isfinite(arr)):
         raise InvalidArgumentError(name, value, "every entry must be a finite number (no nan or inf)")
     return arr
 
@@ -185,9 +188,11 @@ def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) ->
     return value
 
 
-def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+def array_of_shape(
+    name: str, value: Any, shape: tuple[int | None, ...], finite: bool = True
+) -> np.ndarray:
     """``value`` as a finite float array whose shape matches ``shape`` (``None``: any length)."""
-    arr = array(name, value, ndim=len(shape))
+    arr = array(name, value, ndim=len(shape), finite=finite)
     if any(s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)):
         want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
         raise InvalidArgumentError(name, f"shape {arr.shape}", f"expected an array of shape {want}")
@@ -258,3 +263,11 @@ def instances(
 def text_or_none(name: str, value: Any) -> str | None:
     """``value`` if it is None or a non-empty string."""
     return optional(text, name, value)
+
+
+def indices(name: str, value: Any, size: int) -> np.ndarray:
+    """``value`` as a 1-D int array of indices into ``size`` things (``0 ≤ i < size``)."""
+    arr = array(name, value, ndim=1)
+    if np.any(arr != np.round(arr)) or (arr.size and (arr.min() < 0 or arr.max() >= size)):
+        raise InvalidArgumentError(name, value, f"expected whole numbers from 0 to {size - 1}")
+    return arr.astype(int)

@@ -81,7 +81,7 @@ class ParameterSet:
         assert isinstance(mechanism, Mechanism)
         if len(mechanism.limbs) != len(self.selections):
             raise InvalidArgumentError(
-                "mechanism", mechanism.name, f"has {len(mechanism.limbs)} limbs, the set {len(self.selections)}"
+                "mechanism", mechanism.name, f"{len(mechanism.limbs)} limbs, the set's {len(self.selections)}"
             )
         return values.array_of_shape("eta", eta, shape)
 

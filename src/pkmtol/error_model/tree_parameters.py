@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.model.loop_tree import COMPONENTS, LoopTree
 from pkmtol.model.tree_from_limbs import LimbRaw
@@ -41,7 +42,7 @@ class TreeParameters:
 
     def raw(self, eta: np.ndarray) -> np.ndarray:
         """Raw errors (n_raw,) of parameter values ``eta`` (n,) [m, rad]."""
-        return self.selection @ np.asarray(eta, dtype=float)
+        return self.selection @ values.vector("eta", eta, len(self))
 
 
 def tree_urdf_set(tree: LoopTree) -> TreeParameters:
