@@ -188,9 +188,7 @@ def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) ->
     return value
 
 
-def array_of_shape(
-    name: str, value: Any, shape: tuple[int | None, ...], finite: bool = True
-) -> np.ndarray:
+def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...], finite: bool = True) -> np.ndarray:
     """``value`` as a finite float array whose shape matches ``shape`` (``None``: any length)."""
     arr = array(name, value, ndim=len(shape), finite=finite)
     if any(s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)):
@@ -271,3 +269,24 @@ def indices(name: str, value: Any, size: int) -> np.ndarray:
     if np.any(arr != np.round(arr)) or (arr.size and (arr.min() < 0 or arr.max() >= size)):
         raise InvalidArgumentError(name, value, f"expected whole numbers from 0 to {size - 1}")
     return arr.astype(int)
+
+
+#: Most random samples one call draws (a larger count runs for hours; ask for fewer).
+MAX_SAMPLES = 10**9
+#: Largest magnitude of a linear map's entry (sensitivities [m/m, m/rad], covariances): beyond it,
+#: products of entries overflow and the linear algebra fails.
+MAX_MAP_ENTRY = 1e100
+
+
+def linear_map(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite, non-empty array of ``shape``, its entries within ±:data:`MAX_MAP_ENTRY`."""
+    arr = array_of_shape(name, value, shape)
+    if arr.size == 0:
+        raise InvalidArgumentError(name, f"shape {arr.shape}", "must not be empty")
+    if float(np.max(np.abs(arr))) > MAX_MAP_ENTRY:
+        raise InvalidArgumentError(
+            name,
+            f"max |entry| {float(np.max(np.abs(arr))):.3g}",
+            f"entries beyond ±{MAX_MAP_ENTRY:g}; are the units SI?",
+        )
+    return arr
