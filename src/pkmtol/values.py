@@ -290,3 +290,11 @@ def linear_map(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarr
             f"entries beyond ±{MAX_MAP_ENTRY:g}; are the units SI?",
         )
     return arr
+
+
+def points(name: str, value: Any) -> np.ndarray:
+    """``value`` as at least one point in K, shape (n, 3) [m], within ±:data:`MAX_LENGTH_M`."""
+    arr = within_length(name, array_of_shape(name, value, (None, 3)))
+    if not len(arr):
+        raise InvalidArgumentError(name, "shape (0, 3)", "expected at least one point")
+    return arr

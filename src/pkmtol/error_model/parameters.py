@@ -77,12 +77,7 @@ class ParameterSet:
 
     def _eta(self, eta: object, mechanism: object, shape: tuple[int | None, ...]) -> np.ndarray:
         """``eta`` as finite parameter values of ``shape``, for a ``mechanism`` of this set's limbs."""
-        values.instance("mechanism", mechanism, Mechanism, "the pkmtol.Mechanism of this parameter set")
-        assert isinstance(mechanism, Mechanism)
-        if len(mechanism.limbs) != len(self.selections):
-            raise InvalidArgumentError(
-                "mechanism", mechanism.name, f"{len(mechanism.limbs)} limbs, the set's {len(self.selections)}"
-            )
+        check_set(self, mechanism)
         return values.array_of_shape("eta", eta, shape)
 
     @property
@@ -232,3 +227,14 @@ def _check_mechanism(mechanism: object) -> None:
         raise InvalidArgumentError(
             "mechanism", mechanism, "expected a pkmtol.Mechanism (pkmtol.load_mechanism)"
         )
+
+
+def check_set(pset: object, mechanism: object) -> None:
+    """InvalidArgumentError unless ``mechanism`` is a Mechanism and ``pset`` a parameter set of its limbs."""
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism (pkmtol.load_mechanism)")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet of the mechanism (pkmtol.parameter_set)")
+    assert isinstance(mechanism, Mechanism) and isinstance(pset, ParameterSet)
+    if len(mechanism.limbs) != len(pset.selections) or any(
+        sel.shape[0] != lb.n_raw for sel, lb in zip(pset.selections, mechanism.limbs, strict=True)
+    ):
+        raise InvalidArgumentError("pset", pset.kind, f"is not a parameter set of '{mechanism.name}'")

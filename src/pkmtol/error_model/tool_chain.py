@@ -97,6 +97,7 @@ def hybrid_parameter_set(mechanism: Mechanism, kind: str = "urdf") -> HybridPara
     Raises:
         InvalidRequestError: the mechanism has no tool chain, or the module has no such set.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism with a [tool] chain")
     tool = _tool(mechanism)
     base = parameter_set(mechanism, kind)
     if kind == "dh" and tool.dh is not None:

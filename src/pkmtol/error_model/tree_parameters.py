@@ -47,6 +47,7 @@ class TreeParameters:
 
 def tree_urdf_set(tree: LoopTree) -> TreeParameters:
     """The ``urdf`` parameter set of a tree (see the module docstring)."""
+    values.instance("tree", tree, LoopTree, "a pkmtol LoopTree (pkmtol.tree_from_urdf)")
     names, units, act, cols = [], [], [], []
     blocks = [(lab, tree.raw_block("joint", j), 6) for j, lab in enumerate(tree.joint_labels)]
     blocks += [(ef.name, tree.raw_block("frame", k), 6) for k, ef in enumerate(tree.error_frames)]

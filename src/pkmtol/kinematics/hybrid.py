@@ -406,6 +406,8 @@ class HybridChain:
         targets = values.within_length("tcp_m", values.array_of_shape("tcp_m", tcp_m, (None, 3)))
         b = len(targets)
         values.instances("guesses", guesses, HybridPose, "solved HybridPose", b)
+        if not b:
+            return []
         if axes is None:
             self._across(None)
             across = None
