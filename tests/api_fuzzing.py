@@ -15,6 +15,7 @@ Used by ``tests/test_api_fuzz.py`` (a seeded subset in CI) and ``scripts/fuzz_ap
 from __future__ import annotations
 
 import inspect
+import os
 import random
 import signal
 import tempfile
@@ -175,6 +176,13 @@ class Fixtures:
         folder = self.tmp / "out"
         folder.mkdir(exist_ok=True)
         return folder
+
+    @cached_property
+    def a_file(self) -> Path:
+        """A file that is no input of any call (a path in place of a folder or another file)."""
+        path = self.tmp / "a_file.txt"
+        path.write_text("not a robot\n", encoding="utf-8")
+        return path
 
     def fresh_dir(self) -> Path:
         return Path(tempfile.mkdtemp(dir=self.tmp))
@@ -762,7 +770,6 @@ def _targets() -> list[Target]:  # noqa: C901 (one table)
 
 
 def _actuated_names(f: Fixtures) -> list[str]:
-    cm = f.constrained
     names = []
     for limb in f.mech.limbs:
         names += [limb.joint_names[a] for a in limb.actuated]
@@ -876,7 +883,7 @@ def bad_values(good: Any, fx: Fixtures) -> list[Any]:
     elif isinstance(good, str):
         out += ["", "nope", good + "x", good.upper(), "\x00"]
     elif isinstance(good, Path):
-        out += [good.with_name("missing"), good.parent, str(good) + "\x00", REPO / "pyproject.toml"]
+        out += [good.with_name("missing"), good.parent, str(good) + "\x00", fx.a_file]
     elif isinstance(good, list | tuple):
         out += [
             [None] * len(good),
@@ -1012,6 +1019,19 @@ def fuzz(
     """Run up to ``limit`` cases (all by default) in the seeded order, within ``budget_s`` seconds."""
     rep = Report()
     start = time.perf_counter()
+    here = os.getcwd()
+    os.chdir(fx.tmp)  # a relative path given as a bad value lands in the fixtures' folder
+    try:
+        _fuzz(fx, seed, limit, light, budget_s, rep, start)
+    finally:
+        os.chdir(here)
+    rep.seconds = time.perf_counter() - start
+    return rep
+
+
+def _fuzz(
+    fx: Fixtures, seed: int, limit: int | None, light: bool, budget_s: float | None, rep: Report, start: float
+) -> None:
     for case in cases(fx, seed, light):
         if limit is not None and rep.calls >= limit:
             break
@@ -1026,9 +1046,7 @@ def fuzz(
             good = args[case.slot] if isinstance(case.slot, int) else kwargs[case.slot]
             rep.bugs.setdefault(place, []).append(describe(case, bad_values(good, fx)[case.value_index]))
         if outcome == "HANG" or seconds > HANG_S:
-            rep.slow.append(describe(case, case.value_index))
-    rep.seconds = time.perf_counter() - start
-    return rep
+            rep.slow.append(f"{case.target.name}[{case.slot}] value {case.value_index}: {seconds:.1f} s")
 
 
 def callables_in_api() -> set[str]:

@@ -63,7 +63,12 @@ def length_m(name: str, value: Any) -> float:
             "expected a number of metres; convert text with its unit first, e.g. "
             f"pkmtol.units.parse_length({value!r})",
         )
-    return number(name, value, positive=True)
+    x = number(name, value, positive=True)
+    if x > MAX_LENGTH_M:
+        raise InvalidArgumentError(
+            name, value, f"a length beyond {MAX_LENGTH_M:g} m; is the unit right (metres)?"
+        )
+    return x
 
 
 def count(name: str, value: Any, low: int = 0, high: int | None = None) -> int:
@@ -174,7 +179,10 @@ def path(name: str, value: Any, what: str = "a file path (str or pathlib.Path)")
     """
     if isinstance(value, bool) or not isinstance(value, str | os.PathLike):
         raise InvalidArgumentError(name, value, f"expected {what}")
-    return Path(value)
+    out = Path(value)
+    if "\x00" in str(out):
+        raise InvalidArgumentError(name, value, "a path cannot hold a NUL character")
+    return out
 
 
 def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:

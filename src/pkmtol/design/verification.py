@@ -46,8 +46,10 @@ DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
 def check_sigma(sigma: object, size: int) -> np.ndarray:
     """Tolerances (size,) checked: ≥ 0, no nan (``inf`` marks a free parameter) [m, rad]."""
     sig = values.array_of_shape("sigma", sigma, (size,), finite=False)
-    if np.any(np.isnan(sig)) or np.any(sig < 0):
-        raise values.InvalidArgumentError("sigma", sigma, "every tolerance must be ≥ 0 (inf: free), no nan")
+    if np.any(np.isnan(sig)) or np.any(sig < 0) or np.any(sig[np.isfinite(sig)] > values.MAX_LENGTH_M):
+        raise values.InvalidArgumentError(
+            "sigma", sigma, "every tolerance must be in [0, 1e4] (m, rad) or inf (free)"
+        )
     return sig
 
 
