@@ -44,7 +44,7 @@ def fosm_tolerances(
     """
     omega = values.array("omega", omega, ndim=1)
     target_m = values.number("target_m", target_m)
-    betas = values.array("betas", betas)
+    betas = values.array("betas", betas, ndim=1)
     check_design(target_m, betas)
     noise_variance = values.number("noise_variance", noise_variance, nonnegative=True)
     scale = 1e-12 * max(float(omega.max(initial=0.0)), 1e-300)
