@@ -535,7 +535,7 @@ def _targets() -> list[Target]:  # noqa: C901 (one table)
         )
     )
     add(Target("TreeBatch.system", lambda f: _call(f.tbatch.system, f.tsols.q.copy(), f.points.copy())))
-    add(Target("TreeBatch.worst_loop", lambda f: _call(f.tbatch.worst_loop, f.tsols.q.copy())))
+    add(Target("TreeBatch.worst_loop", lambda f: _call(f.tbatch.worst_loop, f.tsols.q[0].copy())))
     add(
         Target(
             "TreeBatch.limit_violation",
