@@ -1,3 +1,4 @@
+# ruff: noqa: E501  (the case tables: one case per line)
 """The Python API refuses bad arguments with a PkmtolError: the seeded fuzzer and the refusals it led to.
 
 ``tests/api_fuzzing.py`` calls every public callable with one bad argument at a time; here a seeded
