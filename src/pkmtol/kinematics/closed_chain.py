@@ -192,7 +192,8 @@ class ClosedChain:
         try:
             q, cond, res = self._newton(q0, free, target, "inverse kinematics")
         except ConvergenceError as err:
-            limb = self.worst_limb(self._failed_q)[0] if self._failed_q is not None else None
+            failed = self._failed_q
+            limb = self.worst_limb(failed)[0] if failed is not None and np.isfinite(failed).all() else None
             raise UnreachableTargetError(
                 target,
                 "the closure equations have no solution near the initial guess "

@@ -162,8 +162,8 @@ class TreeBatch:
 
     def system(self, q: np.ndarray, targets: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, TreePoses]:
         """Residuals (b, rows), Jacobians (b, rows, n) and the kinematics at ``q`` (b, n)."""
-        q = values.array_of_shape("q", q, (None, self.n_joints))
-        targets = values.optional(values.array_of_shape, "targets", targets, (len(q), 3))
+        q = values.array_of_shape("q", q, (None, self.n_joints), finite=False)  # Newton iterates
+        targets = values.optional(values.array_of_shape, "targets", targets, (len(q), 3), finite=False)
         poses = forward(self.tables, q)
         b = len(poses.joint)
         rows = self.n_equations + (self.tree.task.rows if targets is not None else 0)
@@ -200,7 +200,7 @@ class TreeBatch:
 
     def worst_loop(self, q: np.ndarray) -> tuple[str, str, tuple[str, str], float, float]:
         """The loop with the largest gap at ``q`` (n,): ``(mechanism, loop, frames, gap [m], [rad])``."""
-        q = values.vector("q", q, self.n_joints)
+        q = values.array_of_shape("q", q, (self.n_joints,), finite=False)  # a diverged solve: its gaps
         poses = forward(self.tables, q[None])
         worst = (self.tree.name, "-", ("", ""), 0.0, 0.0)
         for lp in self.tree.loops:
