@@ -156,6 +156,15 @@ def _forward_below_limit(tmp: Path) -> Any:
     return chain.forward(u, pose.q_all)
 
 
+def _mjcf_geom_nan(tmp: Path) -> Any:
+    """The MJCF seed robot with its first sphere's size ``nan``."""
+    folder = tmp / "mjcf"
+    shutil.copytree(REPO / "tests" / "data" / "r2rps_ups_mjcf", folder)
+    xml = folder / "robot.xml"
+    xml.write_text(xml.read_text(encoding="utf-8").replace('size="0.03"', 'size="nan"', 1), encoding="utf-8")
+    return load_mechanism(folder)
+
+
 def _verify_one(**changes: Any) -> Any:
     """``verify`` of one parameter at one pose, with ``changes`` to its arguments."""
     mech = seed_mech()
@@ -435,6 +444,7 @@ CASES: list[Case] = [
     Case("Python API", "a length of 1e300 m", lambda t: DesignOptions(target_m=1e300), IA, ("target_m", "beyond 10000 m"), {"argument": "target_m"}),
     Case("URDF", "`nan` as a visual's sphere radius", urdf(L4_L1_VISUAL, L4_L1_VISUAL.replace('"0.03"', '"nan"')), UE, ("limb 'limb4'", "link 'limb4_l1'", "<visual> <sphere> radius = 'nan'"), {"limb": "limb4"}),
     Case("URDF", "`inf` in a visual's origin", urdf(L4_L1_VISUAL, L4_L1_VISUAL.replace("<geometry>", '<origin xyz="0 inf 0" />\n      <geometry>')), UE, ("link 'limb4_l1'", "<visual> origin xyz"), {"limb": "limb4"}),
+    Case("URDF", "`nan` as the size of an MJCF `<geom>`", _mjcf_geom_nan, E.MJCFError, ("limb1_l1", "<geom 'limb1_l1_visual'> size = 'nan'")),
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),
     Case("Command line", "`--samples 0`", cli("allocate", "{robot}", "--samples", "0"), IA, ("--samples 0", "≥ 2"), {"argument": "--samples"}),

@@ -172,3 +172,22 @@ def test_visual_geometry_that_is_not_finite_is_refused_naming_the_link(tmp_path,
     assert "link 'limb4_l1'" in str(err.value)
     for w in words:
         assert w in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "new, words",
+    [('type="sphere" size="nan"', ("size = 'nan'", "≥ 0")), ('type="sphere" size="0.03" pos="0 inf 0"', ("pos = '0 inf 0'",))],
+)
+def test_mjcf_geometry_that_is_not_finite_is_refused_naming_the_body(tmp_path, new, words) -> None:
+    folder = tmp_path / "mjcf"
+    shutil.copytree(MJCF.parent, folder)
+    xml = folder / "robot.xml"
+    text = xml.read_text(encoding="utf-8")
+    old = 'type="sphere" size="0.03"'
+    assert old in text
+    xml.write_text(text.replace(old, new, 1), encoding="utf-8")
+    with pytest.raises(E.MJCFError) as err:
+        pkmtol.load_mechanism(folder)
+    assert "'limb1_l1'" in str(err.value) and "<geom 'limb1_l1_visual'>" in str(err.value)
+    for w in words:
+        assert w in str(err.value)
