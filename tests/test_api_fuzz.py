@@ -191,3 +191,15 @@ def test_mjcf_geometry_that_is_not_finite_is_refused_naming_the_body(tmp_path, n
     assert "'limb1_l1'" in str(err.value) and "<geom 'limb1_l1_visual'>" in str(err.value)
     for w in words:
         assert w in str(err.value)
+
+
+def test_hybrid_forward_refuses_a_wrist_joint_beyond_its_limits(fx) -> None:
+    h, home = fx.hchain, fx.hhome
+    u = home.module.q_all[h.chain.actuated_idx]
+    q = home.q_tool.copy()
+    q[0] = h._upper[0] + 0.1  # wrist_c 0.1 rad beyond π
+    with pytest.raises(E.JointLimitError) as err:
+        h.forward(u, q, home.module.q_all)
+    assert err.value.joint == "wrist_c" and err.value.value == pytest.approx(np.pi + 0.1)
+    pose, oMt = h.forward(u, home.q_tool, home.module.q_all)  # at home: the home TCP
+    assert np.abs(oMt.translation - home.oMt.translation).max() < 1e-9

@@ -205,7 +205,11 @@ class HybridChain:
             q = q + self._tool_q("tool_offsets", tool_offsets)
         pose = self.chain.forward(u_module, module_guess, module_offsets)
         pMt, _ = tool_frames(self.tool, self.tool_model, self.tool_data, q)
-        return pose, pose.oMp * pMt
+        oMt = pose.oMp * pMt
+        beyond = self.limit_violation(q, oMt.translation)  # a tool joint outside its limits (as inverse)
+        if beyond is not None:
+            raise beyond
+        return pose, oMt
 
     def _finish(self, cur: HybridPose, jac: np.ndarray, size: float, target: np.ndarray) -> HybridPose:
         s = np.linalg.svd(jac, compute_uv=False)
