@@ -3,6 +3,7 @@
     python scripts/fuzz_api.py                       # every case, seed 0
     python scripts/fuzz_api.py --seed 1 --limit 3000 # the first 3,000 of seed 1's order
     python scripts/fuzz_api.py --light               # heavy callables get type errors only
+    python scripts/fuzz_api.py --draws 20 --seed 3   # and 20 random values per argument
 
 Prints the callables covered, the calls made, the outcomes, and each place a non-PkmtolError
 escaped from with up to three of its cases. Exits 1 if anything escaped or hung.
@@ -27,6 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="order of the cases (default 0)")
     parser.add_argument("--limit", type=int, default=None, help="at most this many calls (default: all)")
     parser.add_argument("--light", action="store_true", help="heavy callables: type errors only")
+    parser.add_argument("--draws", type=int, default=0, help="random bad values more per argument (seeded)")
     parser.add_argument("--only", default=None, help="only targets whose name contains this text")
     parser.add_argument(
         "--check-good", action="store_true", help="first run every good call and report failures"
@@ -43,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"good call fails: {name}: {err}")
             if bad:
                 return 1
-        rep = api_fuzzing.fuzz(fx, args.seed, args.limit, light=args.light)
+        rep = api_fuzzing.fuzz(fx, args.seed, args.limit, light=args.light, draws=args.draws)
     in_api = api_fuzzing.callables_in_api()
     missing = ", ".join(sorted(in_api - known)) or "none"
     print(f"callables covered: {len(rep.targets)} (in the API: {len(in_api)}; not in the table: {missing})")

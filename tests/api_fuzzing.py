@@ -909,6 +909,45 @@ class Case:
     target: Target
     slot: int | str
     value_index: int
+    draw: int = -1  # ≥ 0: a random value drawn with this seed (:func:`random_value`) instead
+
+
+def value_of(case: Case, good: Any, fx: Fixtures) -> Any:
+    """The bad value of ``case`` for the good value ``good``."""
+    if case.draw >= 0:
+        return random_value(good, np.random.default_rng(case.draw))
+    return bad_values(good, fx)[case.value_index]
+
+
+def random_value(good: Any, rng: np.random.Generator) -> Any:
+    """A random bad value shaped like ``good``: magnitudes from 1e-320 to 1e308, one entry broken, any shape.
+
+    Whole numbers stay within ±10⁶ (a valid but huge count is no bug, only slow).
+    """
+    x = float(rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-320, 308))
+    kind = int(rng.integers(5))
+    if isinstance(good, np.ndarray) and good.dtype.kind in "fi" and good.size:
+        arr = good.astype(float).copy()
+        if kind == 0:
+            arr.flat[int(rng.integers(arr.size))] = rng.choice([NAN, INF, -INF, x])
+        elif kind == 1:
+            arr = arr * x
+        elif kind == 2:
+            arr = rng.standard_normal(tuple(int(n) for n in rng.integers(0, 6, size=int(rng.integers(0, 4)))))
+        elif kind == 3:
+            arr = np.round(arr * 10.0 ** rng.integers(-3, 4)).astype(int)
+        else:
+            arr = arr + rng.standard_normal(arr.shape) * 10.0 ** rng.uniform(-12, 3)
+        return arr
+    if isinstance(good, bool | int):
+        return int(rng.integers(-(10**6), 10**6)) if kind < 3 else x
+    if isinstance(good, float):
+        return good * x if kind < 2 else x
+    if isinstance(good, str):
+        return "".join(chr(int(c)) for c in rng.integers(1, 0x2FF, size=int(rng.integers(0, 12))))
+    if isinstance(good, list | tuple) and good:
+        return [random_value(g, rng) for g in good][: int(rng.integers(0, len(good) + 2))]
+    return x
 
 
 @dataclass
@@ -940,9 +979,13 @@ def slots(args: list[Any], kwargs: dict[str, Any]) -> list[int | str]:
     return [*range(len(args)), *kwargs]
 
 
-def cases(fx: Fixtures, seed: int, light: bool = False) -> Iterator[Case]:
-    """Every (target, argument, bad value) in a seeded order; ``light``: heavy targets' type errors only."""
+def cases(fx: Fixtures, seed: int, light: bool = False, draws: int = 0) -> Iterator[Case]:
+    """Every (target, argument, bad value) in a seeded order; ``light``: heavy targets' type errors only.
+
+    ``draws``: per argument, that many random values more (:func:`random_value`, seeded by ``seed``).
+    """
     out: list[Case] = []
+    counter = 0
     for target in TARGETS:
         _, args, kwargs = target.build(fx)
         for slot in slots(args, kwargs):
@@ -952,6 +995,9 @@ def cases(fx: Fixtures, seed: int, light: bool = False) -> Iterator[Case]:
                 if light and target.heavy and i not in _TYPE_ERRORS:
                     continue
                 out.append(Case(target, slot, i))
+            for _ in range(0 if light and target.heavy else draws):
+                counter += 1
+                out.append(Case(target, slot, -1, draw=seed * 1_000_003 + counter))
     random.Random(seed).shuffle(out)
     yield from out
 
@@ -987,7 +1033,7 @@ def run_case(case: Case, fx: Fixtures) -> tuple[str, str | None, float]:
     """Run one case: (outcome, escape place or None, seconds)."""
     fn, args, kwargs = case.target.build(fx)
     good = args[case.slot] if isinstance(case.slot, int) else kwargs[case.slot]
-    value = bad_values(good, fx)[case.value_index]
+    value = value_of(case, good, fx)
     if isinstance(case.slot, int):
         args[case.slot] = value
     else:
@@ -1014,7 +1060,12 @@ def run_case(case: Case, fx: Fixtures) -> tuple[str, str | None, float]:
 
 
 def fuzz(
-    fx: Fixtures, seed: int, limit: int | None = None, light: bool = False, budget_s: float | None = None
+    fx: Fixtures,
+    seed: int,
+    limit: int | None = None,
+    light: bool = False,
+    budget_s: float | None = None,
+    draws: int = 0,
 ) -> Report:
     """Run up to ``limit`` cases (all by default) in the seeded order, within ``budget_s`` seconds."""
     rep = Report()
@@ -1022,7 +1073,7 @@ def fuzz(
     here = os.getcwd()
     os.chdir(fx.tmp)  # a relative path given as a bad value lands in the fixtures' folder
     try:
-        _fuzz(fx, seed, limit, light, budget_s, rep, start)
+        _fuzz(fx, seed, limit, light, budget_s, rep, start, draws)
     finally:
         os.chdir(here)
     rep.seconds = time.perf_counter() - start
@@ -1030,9 +1081,16 @@ def fuzz(
 
 
 def _fuzz(
-    fx: Fixtures, seed: int, limit: int | None, light: bool, budget_s: float | None, rep: Report, start: float
+    fx: Fixtures,
+    seed: int,
+    limit: int | None,
+    light: bool,
+    budget_s: float | None,
+    rep: Report,
+    start: float,
+    draws: int,
 ) -> None:
-    for case in cases(fx, seed, light):
+    for case in cases(fx, seed, light, draws):
         if limit is not None and rep.calls >= limit:
             break
         if budget_s is not None and time.perf_counter() - start > budget_s:
@@ -1044,7 +1102,7 @@ def _fuzz(
         if place is not None:
             fn, args, kwargs = case.target.build(fx)
             good = args[case.slot] if isinstance(case.slot, int) else kwargs[case.slot]
-            rep.bugs.setdefault(place, []).append(describe(case, bad_values(good, fx)[case.value_index]))
+            rep.bugs.setdefault(place, []).append(describe(case, value_of(case, good, fx)))
         if outcome == "HANG" or seconds > HANG_S:
             rep.slow.append(f"{case.target.name}[{case.slot}] value {case.value_index}: {seconds:.1f} s")
 
