@@ -378,7 +378,6 @@ def overconstraint_lines(grid: Sweep, names_all: list[str]) -> list[str]:
 def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> str:
     """The whole report as terminal text or Markdown (tolerances in mm/mrad, or µm/µrad with ``um``)."""
     values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
-    values.flag("markdown", markdown)
     values.choice("units", units, DISPLAY_UNITS)
     table = _md_table if markdown else text_table
     h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
