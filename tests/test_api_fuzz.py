@@ -176,7 +176,10 @@ def test_visual_geometry_that_is_not_finite_is_refused_naming_the_link(tmp_path,
 
 @pytest.mark.parametrize(
     "new, words",
-    [('type="sphere" size="nan"', ("size = 'nan'", "≥ 0")), ('type="sphere" size="0.03" pos="0 inf 0"', ("pos = '0 inf 0'",))],
+    [
+        ('type="sphere" size="nan"', ("size = 'nan'", "≥ 0")),
+        ('type="sphere" size="0.03" pos="0 inf 0"', ("pos = '0 inf 0'",)),
+    ],
 )
 def test_mjcf_geometry_that_is_not_finite_is_refused_naming_the_body(tmp_path, new, words) -> None:
     folder = tmp_path / "mjcf"
