@@ -24,6 +24,7 @@ import pinocchio as pin
 from pkmtol import (
     ClosedChain,
     DesignOptions,
+    DrawingSettings,
     Mechanism,
     TaskSpace,
     allocate,
@@ -32,7 +33,10 @@ from pkmtol import (
     load_mechanism,
     load_mjcf,
     parameter_set,
+    perturbed_limb_models,
+    sign_off,
     sweep,
+    verify,
     write_outputs,
 )
 from pkmtol import exceptions as E
@@ -150,6 +154,38 @@ def contract_without_machines(tmp: Path) -> Any:
     return check_contract(allocate(seed_mech(), small), machines=0)
 
 
+def _forward_below_limit(tmp: Path) -> Any:
+    """Limb 1's slide commanded 10 mm below its lower limit (0.4 m) from the task-space centre."""
+    mech = seed_mech()
+    chain = ClosedChain(mech)
+    pose = chain.inverse(mech.task_space.grid()[0])
+    u = pose.q_all[chain.actuated_idx].copy()
+    u[0] = 0.39
+    return chain.forward(u, pose.q_all)
+
+
+def _mjcf_geom_nan(tmp: Path) -> Any:
+    """The MJCF seed robot with its first sphere's size ``nan``."""
+    folder = tmp / "mjcf"
+    shutil.copytree(REPO / "tests" / "data" / "r2rps_ups_mjcf", folder)
+    xml = folder / "robot.xml"
+    xml.write_text(xml.read_text(encoding="utf-8").replace('size="0.03"', 'size="nan"', 1), encoding="utf-8")
+    return load_mechanism(folder)
+
+
+def _verify_one(**changes: Any) -> Any:
+    """``verify`` of one parameter at one pose, with ``changes`` to its arguments."""
+    mech = seed_mech()
+    pset = parameter_set(mech)
+    kw: dict[str, Any] = dict(
+        mechanism=mech, pset=pset, sweep_random=sweep(mech, pset, mech.task_space.grid()[:1]),
+        columns=np.array([0]), sigma=np.array([1e-5]), target_m=5e-5, distribution="gaussian",
+        samples=10, exact_samples=0, rng=np.random.default_rng(0),
+    )  # fmt: skip
+    kw.update(changes)
+    return verify(**kw)
+
+
 def locked_out(tmp: Path) -> Any:
     out = tmp / "busy"
     with RunFolder(out):
@@ -238,6 +274,8 @@ def jit_switch_misspelt(tmp: Path) -> Any:
 
 L4_LAST = "  [0.0, 0.0, 0.0, 0.0],\n]\nend = [0.0, 90.0]\nlimits = [[-90.0, 90.0], [-90.0, 90.0], [0.3, 1.6]]"
 L4_U1 = '<joint name="limb4_u1" type="revolute">'
+#: Limb 4's first link and the start of its visual (a sphere).
+L4_L1_VISUAL = '<link name="limb4_l1">\n    <visual>\n      <geometry>\n        <sphere radius="0.03" />'
 MF, UE, IA, UK = E.MechanismFormatError, E.URDFError, E.InvalidArgumentError, E.UnknownKeyError
 
 
@@ -398,6 +436,24 @@ CASES: list[Case] = [
     Case("Python API", "`load_mjcf` given `None` as the file", lambda t: load_mjcf(None, reference_point_m=[0, 0, 0.3], task_space=TASK), IA, ("path", "file path"), {"argument": "path"}),  # type: ignore[arg-type]
     Case("Python API", "`write_outputs` given something else than a result", lambda t: write_outputs("result", t / "o"), IA, ("result", "DesignResult")),  # type: ignore[arg-type]
     Case("Python API", "`check_contract(design, machines=0)`", contract_without_machines, IA, ("machines = 0", "integer ≥ 1"), {"argument": "machines"}),
+    # ---- Python API: arguments of every public callable (tests/test_api_fuzz.py fuzzes them all)
+    Case("Python API", "`ClosedChain.inverse(None)`", lambda t: ClosedChain(seed_mech()).inverse(None), IA, ("target_m", "numbers"), {"argument": "target_m"}),  # type: ignore[arg-type]
+    Case("Python API", "`ClosedChain.forward` driving an actuator beyond its limits", _forward_below_limit, IA, ("q_actuated", "limb1_p3", "outside its limits [0.4, 1.6]"), {"argument": "q_actuated"}),
+    Case("Python API", "`mech.constraint_models(5)`", lambda t: seed_mech().constraint_models(5), IA, ("models", "list of pin.Model"), {"argument": "models"}),  # type: ignore[arg-type]
+    Case("Python API", "`perturbed_limb_models(mech, None)`", lambda t: perturbed_limb_models(seed_mech(), None), IA, ("eps", "one per limb"), {"argument": "eps"}),  # type: ignore[arg-type]
+    Case("Python API", "`load_mechanism(folder, urdf_texts=5)`", lambda t: load_mechanism(SEED, urdf_texts=5), IA, ("urdf_texts", "mapping"), {"argument": "urdf_texts"}),  # type: ignore[arg-type]
+    Case("Python API", "`load_mjcf(..., keyframe=[])`", lambda t: load_mjcf(REPO / "tests/data/r2rps_ups_mjcf/robot.xml", reference_point_m=[0, 0, 0.3], task_space=TASK, keyframe=[]), IA, ("keyframe", "string"), {"argument": "keyframe"}),  # type: ignore[arg-type]
+    Case("Python API", "`verify(..., target_m=nan)` (it returned R = 1)", lambda t: _verify_one(target_m=float("nan")), IA, ("target_m", "finite"), {"argument": "target_m"}),
+    Case("Python API", "`verify(..., distribution=\"normal\")`", lambda t: _verify_one(distribution="normal"), IA, ("distribution", "'gaussian'"), {"argument": "distribution"}),
+    Case("Python API", "`sign_off(None)`", lambda t: sign_off(None), IA, ("result", "DesignResult"), {"argument": "result"}),  # type: ignore[arg-type]
+    Case("Python API", "`DrawingSettings(k=None)`", lambda t: DrawingSettings(k=None), IA, ("DrawingSettings.k", "number"), {"argument": "DrawingSettings.k"}),  # type: ignore[arg-type]
+    Case("Python API", "`DrawingSettings(k=1e308)`", lambda t: DrawingSettings(k=1e308), IA, ("DrawingSettings.k", "≤ 100"), {"argument": "DrawingSettings.k"}),
+    Case("Python API", "`fosm_tolerances` given one β as a number", lambda t: fosm_tolerances(np.ones(3), 5e-5, 1e308), IA, ("betas", "1 dimension"), {"argument": "betas"}),  # type: ignore[arg-type]
+    Case("Python API", "`TaskSpace.sample(rng, 10**12)`", lambda t: TASK.sample(np.random.default_rng(0), 10**12), IA, ("count", "≤ 100000000"), {"argument": "count"}),
+    Case("Python API", "a length of 1e300 m", lambda t: DesignOptions(target_m=1e300), IA, ("target_m", "beyond 10000 m"), {"argument": "target_m"}),
+    Case("URDF", "`nan` as a visual's sphere radius", urdf(L4_L1_VISUAL, L4_L1_VISUAL.replace('"0.03"', '"nan"')), UE, ("limb 'limb4'", "link 'limb4_l1'", "<visual> <sphere> radius = 'nan'"), {"limb": "limb4"}),
+    Case("URDF", "`inf` in a visual's origin", urdf(L4_L1_VISUAL, L4_L1_VISUAL.replace("<geometry>", '<origin xyz="0 inf 0" />\n      <geometry>')), UE, ("link 'limb4_l1'", "<visual> origin xyz"), {"limb": "limb4"}),
+    Case("URDF", "`nan` as the size of an MJCF `<geom>`", _mjcf_geom_nan, E.MJCFError, ("limb1_l1", "<geom 'limb1_l1_visual'> size = 'nan'")),
     # ---- command line
     Case("Command line", "`--seed -1`", cli("allocate", "{robot}", "--seed", "-1"), IA, ("--seed -1", "≥ 0"), {"argument": "--seed"}),
     Case("Command line", "`--samples 0`", cli("allocate", "{robot}", "--samples", "0"), IA, ("--samples 0", "≥ 2"), {"argument": "--samples"}),

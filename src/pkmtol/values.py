@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
@@ -63,7 +63,12 @@ def length_m(name: str, value: Any) -> float:
             "expected a number of metres; convert text with its unit first, e.g. "
             f"pkmtol.units.parse_length({value!r})",
         )
-    return number(name, value, positive=True)
+    x = number(name, value, positive=True)
+    if x > MAX_LENGTH_M:
+        raise InvalidArgumentError(
+            name, value, f"a length beyond {MAX_LENGTH_M:g} m; is the unit right (metres)?"
+        )
+    return x
 
 
 def count(name: str, value: Any, low: int = 0, high: int | None = None) -> int:
@@ -124,8 +129,11 @@ def vector(name: str, value: Any, n: int) -> np.ndarray:
     return arr
 
 
-def array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
-    """``value`` as a float array of finite numbers (``ndim`` dimensions if given)."""
+def array(name: str, value: Any, ndim: int | None = None, finite: bool = True) -> np.ndarray:
+    """``value`` as a float array of finite numbers (``ndim`` dimensions if given).
+
+    ``finite=False`` lets nan and inf through (arrays that an iteration may have made).
+    """
     if isinstance(value, str | bytes | bool) or value is None or isinstance(value, dict):
         raise InvalidArgumentError(name, value, "expected numbers (a list or an array)")
     if isinstance(value, np.ndarray):
@@ -139,7 +147,7 @@ def array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
         raise InvalidArgumentError(name, value, "expected numbers only (rows of equal length)") from None
     if ndim is not None and arr.ndim != ndim:
         raise InvalidArgumentError(name, value, f"expected {ndim} dimension(s), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if finite and not np.all(np.isfinite(arr)):
         raise InvalidArgumentError(name, value, "every entry must be a finite number (no nan or inf)")
     return arr
 
@@ -171,7 +179,10 @@ def path(name: str, value: Any, what: str = "a file path (str or pathlib.Path)")
     """
     if isinstance(value, bool) or not isinstance(value, str | os.PathLike):
         raise InvalidArgumentError(name, value, f"expected {what}")
-    return Path(value)
+    out = Path(value)
+    if "\x00" in str(out):
+        raise InvalidArgumentError(name, value, "a path cannot hold a NUL character")
+    return out
 
 
 def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
@@ -185,10 +196,113 @@ def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) ->
     return value
 
 
-def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+def array_of_shape(name: str, value: Any, shape: tuple[int | None, ...], finite: bool = True) -> np.ndarray:
     """``value`` as a finite float array whose shape matches ``shape`` (``None``: any length)."""
-    arr = array(name, value, ndim=len(shape))
+    arr = array(name, value, ndim=len(shape), finite=finite)
     if any(s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)):
         want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
         raise InvalidArgumentError(name, f"shape {arr.shape}", f"expected an array of shape {want}")
+    return arr
+
+
+def optional(check: Any, name: str, value: Any, *args: Any, **kwargs: Any) -> Any:
+    """``None`` if ``value`` is None, else ``check(name, value, *args, **kwargs)``.
+
+    >>> optional(number, "k", None) is None
+    True
+    """
+    return None if value is None else check(name, value, *args, **kwargs)
+
+
+def generator(name: str, value: Any) -> np.random.Generator:
+    """``value`` if it is a :class:`numpy.random.Generator` (``np.random.default_rng(seed)``)."""
+    return instance(name, value, np.random.Generator, "a numpy Generator, e.g. np.random.default_rng(0)")
+
+
+def index(name: str, value: Any, size: int) -> int:
+    """``value`` as an index into ``size`` things (``0 ≤ value < size``)."""
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise InvalidArgumentError(name, value, f"expected a whole number from 0 to {size - 1}")
+    if not 0 <= int(value) < size:
+        raise InvalidArgumentError(name, value, f"must be from 0 to {size - 1}")
+    return int(value)
+
+
+def joint_values(name: str, value: Any) -> dict[str, float]:
+    """``value`` as a mapping of joint names to finite values [rad or m] (``{"limb1_p3": 0.8}``)."""
+    if not isinstance(value, Mapping):
+        raise InvalidArgumentError(name, value, "expected a mapping of joint names to values")
+    out = {}
+    for key, v in value.items():
+        if not isinstance(key, str):
+            raise InvalidArgumentError(name, value, f"expected joint names (strings) as keys, found {key!r}")
+        out[key] = number(f"{name}[{key!r}]", v)
+    return out
+
+
+def lengths(name: str, value: Any) -> dict[str, float]:
+    """``value`` as a mapping of names to positive lengths [m] (``{"limb1_p3": 0.2}``)."""
+    if not isinstance(value, Mapping):
+        raise InvalidArgumentError(name, value, "expected a mapping of names to lengths [m], e.g. {'j': 0.1}")
+    out = {}
+    for key, v in value.items():
+        if not isinstance(key, str):
+            raise InvalidArgumentError(name, value, f"expected names (strings) as keys, found {key!r}")
+        out[key] = length_m(f"{name}[{key!r}]", v)
+        within_length(f"{name}[{key!r}]", v)
+    return out
+
+
+def instances(
+    name: str, value: Any, kind: type | tuple[type, ...], what: str, size: int | None = None
+) -> list[Any]:
+    """``value`` as a list of ``kind`` (``size`` of them if given); else InvalidArgumentError."""
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
+        raise InvalidArgumentError(name, value, f"expected a list of {what}")
+    if size is not None and len(value) != size:
+        raise InvalidArgumentError(name, f"{len(value)} items", f"expected {size} ({what}), one per limb")
+    for k, v in enumerate(value):
+        instance(f"{name}[{k}]", v, kind, what)
+    return list(value)
+
+
+def text_or_none(name: str, value: Any) -> str | None:
+    """``value`` if it is None or a non-empty string."""
+    return optional(text, name, value)
+
+
+def indices(name: str, value: Any, size: int) -> np.ndarray:
+    """``value`` as a 1-D int array of indices into ``size`` things (``0 ≤ i < size``)."""
+    arr = array(name, value, ndim=1)
+    if np.any(arr != np.round(arr)) or (arr.size and (arr.min() < 0 or arr.max() >= size)):
+        raise InvalidArgumentError(name, value, f"expected whole numbers from 0 to {size - 1}")
+    return arr.astype(int)
+
+
+#: Most random samples one call draws (a larger count runs for hours; ask for fewer).
+MAX_SAMPLES = 10**9
+#: Largest magnitude of a linear map's entry (sensitivities [m/m, m/rad], covariances): beyond it,
+#: products of entries overflow and the linear algebra fails.
+MAX_MAP_ENTRY = 1e100
+
+
+def linear_map(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite, non-empty array of ``shape``, its entries within ±:data:`MAX_MAP_ENTRY`."""
+    arr = array_of_shape(name, value, shape)
+    if arr.size == 0:
+        raise InvalidArgumentError(name, f"shape {arr.shape}", "must not be empty")
+    if float(np.max(np.abs(arr))) > MAX_MAP_ENTRY:
+        raise InvalidArgumentError(
+            name,
+            f"max |entry| {float(np.max(np.abs(arr))):.3g}",
+            f"entries beyond ±{MAX_MAP_ENTRY:g}; are the units SI?",
+        )
+    return arr
+
+
+def points(name: str, value: Any) -> np.ndarray:
+    """``value`` as at least one point in K, shape (n, 3) [m], within ±:data:`MAX_LENGTH_M`."""
+    arr = within_length(name, array_of_shape(name, value, (None, 3)))
+    if not len(arr):
+        raise InvalidArgumentError(name, "shape (0, 3)", "expected at least one point")
     return arr

@@ -221,7 +221,7 @@ def _every_root(
     """The scale at which the minimum over the poses of R reaches R*, on a growing set of poses.
 
     Every R_j falls as the scale grows, so the root over a subset of poses lies at or above the
-    root over all of them. Start from the poses least reliable at ``lo``; find the subset's root;
+    root over all of them. Start from the poses least reliable at ``hi``; find the subset's root;
     check every pose there; if one falls short, add the ones that do and search again below. At
     the end the subset holds the pose that binds, and its root is the whole grid's (to find_root's
     1e-12), in a few passes over the grid instead of one per root-finding step.
@@ -231,8 +231,8 @@ def _every_root(
         Es = None if extra is None else extra[rows]
         return float(grid_reliability(J[rows], base * math.exp(log_s), target_m, Es).min()) - r_star
 
-    r_lo = grid_reliability(J, base * math.exp(lo), target_m, extra)
-    rows = np.sort(np.argsort(r_lo)[:8])
+    r_hi = grid_reliability(J, base * math.exp(hi), target_m, extra)  # R = 1 everywhere at lo, often
+    rows = np.sort(np.argsort(r_hi)[:8])  # holds the argmin at hi: the subset brackets its root
     while True:
         root = find_root(functools.partial(_call_with, sub_excess, rows), lo, hi)
         r_all = grid_reliability(J, base * math.exp(root), target_m, extra)

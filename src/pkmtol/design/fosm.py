@@ -46,12 +46,10 @@ def fosm_tolerances(
            [        inf,         inf]])
     """
     omega = values.array("omega", omega, ndim=1)
-    values.number("target_m", target_m)
-    values.array("betas", betas)
+    target_m = values.number("target_m", target_m)
+    betas = values.array("betas", betas, ndim=1)
     check_design(target_m, betas)
-    if not np.isfinite(noise_variance) or noise_variance < 0:
-        raise InvalidRequestError(f"the noise variance must be finite and ≥ 0, got {noise_variance!r}")
-    omega = np.asarray(omega, dtype=float)
+    noise_variance = values.number("noise_variance", noise_variance, nonnegative=True)
     scale = 1e-12 * max(float(omega.max(initial=0.0)), 1e-300)
     active = omega > scale
     n = int(active.sum())

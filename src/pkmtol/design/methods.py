@@ -20,6 +20,7 @@ from pkmtol.design.cost import cost_model, cost_optimal
 from pkmtol.design.exact import bracket_log_scale, criterion_value, scale_design
 from pkmtol.design.orientation import joint_covariance, joint_reliability
 from pkmtol.design.reliability import exact_reliability_many, reliability_fosm
+from pkmtol.design.verification import check_sigma
 from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.sweep import Sweep
@@ -101,7 +102,28 @@ def method_design_for(
             no tolerance reaches.
     """
     values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
     values.instance("grid", grid, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
+    unc = values.indices("unc", unc, len(pset))
+    fosm_sigma = check_sigma(fosm_sigma, len(unc))
+    target = values.length_m("target", target)
+    design_beta = values.number("design_beta", design_beta, positive=True)
+    worst = values.index("worst", worst, len(grid.poses))
+    for field_name in ("method", "criterion"):
+        if not isinstance(getattr(opt, field_name, None), str):
+            raise values.InvalidArgumentError("opt", opt, "expected DesignOptions (method and criterion)")
+    values.optional(
+        values.instance, "maps", maps, AccuracyMaps, "AccuracyMaps (error_model.compensation) or None"
+    )
+    if orientation is not None:
+        if not isinstance(orientation, tuple) or len(orientation) != 2:
+            raise values.InvalidArgumentError(
+                "orientation", orientation, "expected (tool axis (3,), Δα* [rad])"
+            )
+        orientation = (
+            values.vector("orientation[0]", orientation[0], 3),
+            values.number("orientation[1]", orientation[1], positive=True),
+        )
     maps = maps if maps is not None else mode_maps(grid, "ideal")
     r_star = float(reliability_fosm(design_beta))
     J = maps.position[:, :, unc]

@@ -45,6 +45,7 @@ def check_options(opt: Any) -> None:
             raise InvalidArgumentError(
                 "target_m", opt.target_m, "the required accuracy Δλ* must be positive, in metres (e.g. 5e-5)"
             )
+        values.length_m("target_m", opt.target_m)  # and within ±1e4 m
     if opt.betas is not None:
         betas = values.array("betas", opt.betas, ndim=1)
         if betas.size == 0 or (betas <= 0).any():

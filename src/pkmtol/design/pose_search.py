@@ -49,8 +49,8 @@ def analytic_design_pose(J: np.ndarray) -> int:
 
 def search_sensitive_pose(J: np.ndarray, samples: int, rng: np.random.Generator) -> PoseSearch:
     """The paper's Steps 1–5 over grid maps ``J`` of shape (m, 3, n), and the analytic answer."""
-    J = values.array_of_shape("J", J, (None, 3, None))
-    values.count("samples", samples, low=2)
+    J = values.linear_map("J", J, (None, 3, None))
+    values.count("samples", samples, low=2, high=values.MAX_SAMPLES)
     values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator (np.random.default_rng(seed))")
     m, _, n = J.shape
     if samples <= SEARCH_CHUNK:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.design.capability import Capability, capability
 from pkmtol.design.contributions import Contributions, contributions
 from pkmtol.design.drawing import DrawingTolerance, drawing_tolerances
@@ -106,6 +107,7 @@ _CACHE: weakref.WeakKeyDictionary[DesignResult, SignOff] = weakref.WeakKeyDictio
 
 def sign_off(result: DesignResult) -> SignOff:
     """The sign-off numbers of a design (computed once per result; see the module docstring)."""
+    values.instance("result", result, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
     cached = _CACHE.get(result)
     if cached is not None:
         return cached

@@ -42,6 +42,18 @@ from pkmtol.model.mechanism import Mechanism
 from pkmtol.statistics import quantiles, wilson_interval
 
 DISTRIBUTIONS = ("uniform_sigma", "uniform_sqrt3_sigma", "gaussian")
+
+
+def check_sigma(sigma: object, size: int) -> np.ndarray:
+    """Tolerances (size,) checked: ≥ 0, no nan (``inf`` marks a free parameter) [m, rad]."""
+    sig = values.array_of_shape("sigma", sigma, (size,), finite=False)
+    if np.any(np.isnan(sig)) or np.any(sig < 0) or np.any(sig[np.isfinite(sig)] > values.MAX_LENGTH_M):
+        raise values.InvalidArgumentError(
+            "sigma", sigma, "every tolerance must be in [0, 1e4] (m, rad) or inf (free)"
+        )
+    return sig
+
+
 #: Linear-model samples drawn and evaluated at a time.
 LINEAR_CHUNK = 65_536
 #: Exact-kinematics samples per chunk of work (one batched forward solve).
@@ -238,6 +250,7 @@ def verify(
         progress: Show a progress bar for the exact subsample.
         executor: Where the exact chunks run (None: serial).
     """
+    values.choice("distribution", distribution, DISTRIBUTIONS)
     return verify_all(
         mechanism,
         pset,
@@ -278,10 +291,18 @@ def verify_all(
             sample in order); :class:`ConvergenceError` counts as unassembled.
     """
     values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
+    values.instance("pset", pset, ParameterSet, "the mechanism's ParameterSet (pkmtol.parameter_set)")
     values.instance("sweep_random", sweep_random, Sweep, "a pkmtol.Sweep (pkmtol.sweep)")
-    values.count("samples", samples, low=1)
-    values.count("exact_samples", exact_samples, low=0)
-    values.instance("rng", rng, np.random.Generator, "a numpy.random.Generator")
+    columns = values.indices("columns", columns, len(pset))
+    sigma = check_sigma(sigma, len(columns))
+    target_m = values.length_m("target_m", target_m)
+    values.count("samples", samples, low=1, high=values.MAX_SAMPLES)
+    values.count("exact_samples", exact_samples, low=0, high=values.MAX_SAMPLES)
+    values.generator("rng", rng)
+    values.flag("progress", progress)
+    values.optional(values.instance, "executor", executor, Executor, "a pkmtol.executor.Executor or None")
+    for d in distributions:
+        values.choice("distributions", d, DISTRIBUTIONS)
     m = len(sweep_random.poses)
     sig = np.where(np.isfinite(sigma), sigma, 0.0)
     Jc = sweep_random.J[:, :, columns]  # (m, 3, k)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.model.dh import dh_error_directions
 from pkmtol.model.limb import Limb
@@ -74,6 +75,11 @@ class ParameterSet:
     def __len__(self) -> int:
         return len(self.parameters)
 
+    def _eta(self, eta: object, mechanism: object, shape: tuple[int | None, ...]) -> np.ndarray:
+        """``eta`` as finite parameter values of ``shape``, for a ``mechanism`` of this set's limbs."""
+        check_set(self, mechanism)
+        return values.array_of_shape("eta", eta, shape)
+
     @property
     def names(self) -> list[str]:
         """Parameter names in order."""
@@ -95,6 +101,7 @@ class ParameterSet:
             ``(eps, offsets)``: per limb ``ε`` of shape (``Limb.n_origins``, 6) for
             :func:`pkmtol.kinematics.perturbation.perturbed_limb_models`, and joint offsets (Σ nq_i,).
         """
+        eta = self._eta(eta, mechanism, (len(self),))
         eps, offsets = [], []
         for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
             raw = sel @ eta[sl]
@@ -114,7 +121,7 @@ class ParameterSet:
             ``(eps, offsets)``: per limb ``ε`` of shape (c, ``Limb.n_origins``, 6) (the ``eps`` of
             :meth:`pkmtol.kinematics.batch.BatchChain.forward`), and offsets (c, Σ nq_i).
         """
-        eta = np.asarray(eta, dtype=float).reshape(-1, len(self))
+        eta = self._eta(eta, mechanism, (None, len(self)))
         eps, offsets = [], []
         for limb, sel, sl in zip(mechanism.limbs, self.selections, self.slices, strict=True):
             raw = eta[:, sl] @ sel.T
@@ -220,3 +227,14 @@ def _check_mechanism(mechanism: object) -> None:
         raise InvalidArgumentError(
             "mechanism", mechanism, "expected a pkmtol.Mechanism (pkmtol.load_mechanism)"
         )
+
+
+def check_set(pset: object, mechanism: object) -> None:
+    """InvalidArgumentError unless ``mechanism`` is a Mechanism and ``pset`` a parameter set of its limbs."""
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism (pkmtol.load_mechanism)")
+    values.instance("pset", pset, ParameterSet, "a ParameterSet of the mechanism (pkmtol.parameter_set)")
+    assert isinstance(mechanism, Mechanism) and isinstance(pset, ParameterSet)
+    if len(mechanism.limbs) != len(pset.selections) or any(
+        sel.shape[0] != lb.n_raw for sel, lb in zip(pset.selections, mechanism.limbs, strict=True)
+    ):
+        raise InvalidArgumentError("pset", pset.kind, f"is not a parameter set of '{mechanism.name}'")

@@ -9,9 +9,9 @@ import numpy as np
 from tqdm import tqdm
 
 import pkmtol.values as values
-from pkmtol.error_model.parameters import ParameterSet
+from pkmtol.error_model.parameters import ParameterSet, check_set
 from pkmtol.error_model.separation import Separation, separate_many
-from pkmtol.exceptions import KinematicsError
+from pkmtol.exceptions import InvalidArgumentError, KinematicsError
 from pkmtol.kinematics.batch import BatchChain
 from pkmtol.kinematics.closed_chain import ClosedChain, Pose
 from pkmtol.kinematics.continuation import continuation
@@ -85,6 +85,18 @@ class Sweep:
         return out
 
 
+def check_chain(chain: object, mechanism: Mechanism) -> None:
+    """InvalidArgumentError unless ``chain`` is None or a ClosedChain of ``mechanism``'s limbs."""
+    if chain is None:
+        return
+    values.instance("chain", chain, ClosedChain, "a ClosedChain of the mechanism, or None")
+    assert isinstance(chain, ClosedChain)
+    if [m.nq for m in chain.models] != [lb.nq for lb in mechanism.limbs]:
+        raise InvalidArgumentError(
+            "chain", chain.mechanism.name, f"solves another mechanism than '{mechanism.name}'"
+        )
+
+
 def sweep(
     mechanism: Mechanism,
     pset: ParameterSet,
@@ -111,9 +123,12 @@ def sweep(
         KinematicsError: the error of the first point (in point order) that cannot be solved or
             separated — unreachable, outside a joint limit, or singular.
     """
-    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
-    values.instance("pset", pset, ParameterSet, "a ParameterSet (pkmtol.parameter_set)")
-    points_m = values.array_of_shape("points_m", points_m, (None, 3))
+    check_set(pset, mechanism)
+    points_m = values.points("points_m", points_m)
+    check_chain(chain, mechanism)
+    if guesses is not None:
+        guesses = values.array_of_shape("guesses", guesses, (len(points_m), mechanism.n_joints))
+    values.flag("progress", progress)
     chain = chain or ClosedChain(mechanism)
     batch = BatchChain(mechanism, chain=chain)
     points = np.asarray(points_m, dtype=float).reshape(-1, 3)

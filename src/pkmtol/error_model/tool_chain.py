@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import COMPONENTS, ErrorParameter, ParameterSet, parameter_set
 from pkmtol.error_model.separation import Separation
 from pkmtol.exceptions import InvalidRequestError
@@ -70,6 +71,7 @@ class HybridParameterSet(ParameterSet):
 
     def sub_assembly(self, index: int) -> str:
         """``module``, ``wrist`` (its joints' placements and zero offsets) or ``tool`` (the TCP frame)."""
+        index = values.index("index", index, len(self))
         if index < self.module_count:
             return "module"
         return "tool" if self.parameters[index].name.startswith("tool.") else "wrist"
@@ -81,7 +83,7 @@ class HybridParameterSet(ParameterSet):
     def tool_raw(self, eta: np.ndarray) -> np.ndarray:
         """The raw tool errors (6·nq_t + 6 + nq_t,) of a parameter vector (n,)."""
         assert self.tool_selection is not None
-        return self.tool_selection @ np.asarray(eta, dtype=float)[self.tool_slice]
+        return self.tool_selection @ values.vector("eta", eta, len(self))[self.tool_slice]
 
 
 def hybrid_parameter_set(mechanism: Mechanism, kind: str = "urdf") -> HybridParameterSet:
@@ -95,6 +97,7 @@ def hybrid_parameter_set(mechanism: Mechanism, kind: str = "urdf") -> HybridPara
     Raises:
         InvalidRequestError: the mechanism has no tool chain, or the module has no such set.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism with a [tool] chain")
     tool = _tool(mechanism)
     base = parameter_set(mechanism, kind)
     if kind == "dh" and tool.dh is not None:

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
+import pkmtol.values as values
+from pkmtol.error_model.parameters import check_set
 from pkmtol.error_model.separation import separate_many
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.tool_chain import HybridParameterSet, ToolSeparation, task_targets, tool_separation
@@ -106,13 +108,21 @@ def hybrid_sweep(
     Raises:
         KinematicsError: the first target (in order) that cannot be solved or separated.
     """
+    values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism with a [tool] chain")
     if not isinstance(pset, HybridParameterSet):
         raise InvalidRequestError(
             "a hybrid machine needs its hybrid_parameter_set (module + tool parameters)"
         )
-    hc = chain or HybridChain(mechanism)
-    tcp = np.asarray(tcp_m, dtype=float).reshape(-1, 3)
+    check_set(pset, mechanism)
+    tcp = values.points("tcp_m", tcp_m)
     m = len(tcp)
+    axes = values.optional(values.array_of_shape, "axes", axes, (m, 3))
+    values.optional(values.instance, "chain", chain, HybridChain, "a HybridChain of the mechanism, or None")
+    values.choice("scope", scope, ("machine", "module"))
+    if guesses is not None:
+        guesses = values.instances("guesses", guesses, HybridPose, "solved HybridPose", m)
+    values.flag("progress", progress)
+    hc = chain or HybridChain(mechanism)
     bar = tqdm(total=m, desc="poses", unit="pose", disable=not progress, leave=False)
     if guesses is None:
         solved = hybrid_continuation(hc, tcp, axes, progress=bar.update)

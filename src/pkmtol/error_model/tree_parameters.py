@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.model.loop_tree import COMPONENTS, LoopTree
 from pkmtol.model.tree_from_limbs import LimbRaw
@@ -41,11 +42,12 @@ class TreeParameters:
 
     def raw(self, eta: np.ndarray) -> np.ndarray:
         """Raw errors (n_raw,) of parameter values ``eta`` (n,) [m, rad]."""
-        return self.selection @ np.asarray(eta, dtype=float)
+        return self.selection @ values.vector("eta", eta, len(self))
 
 
 def tree_urdf_set(tree: LoopTree) -> TreeParameters:
     """The ``urdf`` parameter set of a tree (see the module docstring)."""
+    values.instance("tree", tree, LoopTree, "a pkmtol LoopTree (pkmtol.tree_from_urdf)")
     names, units, act, cols = [], [], [], []
     blocks = [(lab, tree.raw_block("joint", j), 6) for j, lab in enumerate(tree.joint_labels)]
     blocks += [(ef.name, tree.raw_block("frame", k), 6) for k, ef in enumerate(tree.error_frames)]

@@ -34,11 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pkmtol.values as values
 from pkmtol.error_model.separation import Separation
 from pkmtol.error_model.sweep import Sweep
 from pkmtol.error_model.tree_parameters import TreeParameters
 from pkmtol.error_model.tree_wrenches import LOOP_RANK_TOLERANCE, limb_fields
-from pkmtol.exceptions import ClosedLoopError, KinematicsError, MobilityError
+from pkmtol.exceptions import ClosedLoopError, InvalidArgumentError, KinematicsError, MobilityError
 from pkmtol.kinematics.continuation import continuation
 from pkmtol.kinematics.solutions import Solutions
 from pkmtol.kinematics.tree_chain import TreeBatch
@@ -86,6 +87,22 @@ def _pinv(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return pinv, lb, rb, ranks
 
 
+def _check_tree(tree: object, params: object = None, batch: object = None) -> None:
+    """The tree, its parameter set and its solver (when given), checked to belong together."""
+    values.instance("tree", tree, LoopTree, "a pkmtol LoopTree (pkmtol.tree_from_urdf)")
+    assert isinstance(tree, LoopTree)
+    if params is not None or batch is not None:
+        values.instance("params", params, TreeParameters, "the tree's TreeParameters (pkmtol.tree_urdf_set)")
+        assert isinstance(params, TreeParameters)
+        if params.selection.shape[0] != tree.n_raw:
+            raise InvalidArgumentError("params", params.kind, "belongs to another tree (tree_urdf_set(tree))")
+    if batch is not None:
+        values.instance("batch", batch, TreeBatch, "a TreeBatch of the tree, or None")
+        assert isinstance(batch, TreeBatch)
+        if batch.tree is not tree:
+            raise InvalidArgumentError("batch", batch.tree.name, "solves another tree; give TreeBatch(tree)")
+
+
 def frame_maps(tree: LoopTree, q: np.ndarray, frame: int) -> FrameMaps:
     """The motion of ``frame`` at poses ``q`` (b, n) with the loops eliminated (module docstring).
 
@@ -97,7 +114,11 @@ def frame_maps(tree: LoopTree, q: np.ndarray, frame: int) -> FrameMaps:
         MobilityError: a passive motion that keeps the loops closed moves the frame (the
             actuators do not hold it there).
     """
-    poses = forward(TreeBatch(tree).tables, np.asarray(q, dtype=float).reshape(-1, tree.nq))
+    _check_tree(tree)
+    q = values.array("q", q)
+    q = values.array_of_shape("q", q[None] if q.ndim == 1 else q, (None, tree.nq))
+    frame = values.index("frame", frame, tree.model.nframes)
+    poses = forward(TreeBatch(tree).tables, q)
     raw = raw_world(tree, poses)
     c, d = loop_jacobians(tree, poses, raw)
     act = np.array(tree.actuated, dtype=int)
@@ -142,6 +163,13 @@ def separate_tree(
         Per problem: its separation, or its error (the solver's, a :class:`SingularPoseError` of W,
         a :class:`MobilityError`).
     """
+    _check_tree(tree, params, batch)
+    values.instance("sols", sols, Solutions, "the Solutions of TreeBatch.inverse")
+    if sols.q.ndim != 2 or sols.q.shape[1] != tree.nq:
+        raise InvalidArgumentError(
+            "sols", f"q of shape {sols.q.shape}", f"expected solutions of this tree ({tree.nq} joints)"
+        )
+    values.flag("general", general)
     if (tree.support(tree.task_frame) & ~tree.support(tree.platform_frame)).any():
         raise ClosedLoopError(
             tree.name,
@@ -175,8 +203,11 @@ def tree_sweep(
     Raises:
         KinematicsError: the first point (in order) that cannot be solved or separated.
     """
+    _check_tree(tree, params, batch)
+    points = values.points("points_m", points_m)
+    if guesses is not None:
+        guesses = values.array_of_shape("guesses", guesses, (len(points), tree.nq))
     batch = batch or TreeBatch(tree)
-    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
     if guesses is None:
         sols = continuation(batch, points, batch.chain.home())
     else:

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -27,6 +28,7 @@ import pinocchio as pin
 import pkmtol.values as values
 from pkmtol.exceptions import (
     ConvergenceError,
+    InvalidArgumentError,
     JointLimitError,
     LoopMismatchError,
     PlatformMismatchError,
@@ -90,6 +92,12 @@ class ClosedChain:
         check_limits: bool = True,
     ) -> None:
         values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism (pkmtol.load_mechanism)")
+        if models is not None:
+            models = values.instances("models", models, pin.Model, "pin.Model", len(mechanism.limbs))
+            for k, (m, lb) in enumerate(zip(models, mechanism.limbs, strict=True)):
+                if m.nq != lb.nq or m.nframes <= lb.platform_frame:
+                    raise InvalidArgumentError(f"models[{k}]", m, f"expected limb '{lb.name}' (nq {lb.nq})")
+        values.flag("check_limits", check_limits)
         self.mechanism = mechanism
         self.models = list(models) if models is not None else [lb.model for lb in mechanism.limbs]
         self.datas = [m.createData() for m in self.models]
@@ -178,14 +186,14 @@ class ClosedChain:
             JointLimitError: the solution violates a URDF joint limit.
             SingularPoseError: the closure Jacobian is singular at the solution.
         """
-        target = np.asarray(target_m, dtype=float)
-        if q0 is None:
-            q0 = self.home()
+        target = values.vector("target_m", target_m, 3)
+        q0 = self.home() if q0 is None else self._joints("q0", q0)
         free = np.ones(q0.size, dtype=bool)
         try:
             q, cond, res = self._newton(q0, free, target, "inverse kinematics")
         except ConvergenceError as err:
-            limb = self.worst_limb(self._failed_q)[0] if self._failed_q is not None else None
+            failed = self._failed_q
+            limb = self.worst_limb(failed)[0] if failed is not None and np.isfinite(failed).all() else None
             raise UnreachableTargetError(
                 target,
                 "the closure equations have no solution near the initial guess "
@@ -214,17 +222,22 @@ class ClosedChain:
         Returns:
             The pose; ``q`` holds the *actual* joint values.
         """
-        q = np.array(q0, dtype=float)
-        q[self.actuated_idx] = q_actuated
+        q = self._joints("q0", q0).copy()
+        q[self.actuated_idx] = values.vector("q_actuated", q_actuated, self.actuated_idx.size)
         if offsets is not None:
-            q[self.actuated_idx] += offsets[self.actuated_idx]
+            q[self.actuated_idx] += self._joints("offsets", offsets)[self.actuated_idx]
+        if self.check_limits:
+            self._check_commands(q_actuated, q)
         free = np.ones(q.size, dtype=bool)
         free[self.actuated_idx] = False
         q, cond, res = self._newton(q, free, None, "forward kinematics")
-        return self._pose(q, cond, res)
+        pose = self._pose(q, cond, res)
+        self._check_limits(q, pose.p_m)
+        return pose
 
     def platform_placements(self, q: np.ndarray) -> list[pin.SE3]:
         """Each limb's platform placement in K at joint values ``q`` (Σ nq,)."""
+        q = self._joints("q", q)
         out = []
         for i, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
             pin.framesForwardKinematics(m, d, q[self.offsets[i] : self.offsets[i + 1]])
@@ -245,13 +258,15 @@ class ClosedChain:
         Uses the closure+task Jacobian of the last inverse solve when ``pose`` is that solution
         (free), otherwise evaluates it: ``A Δq = [0; Δp]``.
         """
-        q = pose.q_all
+        values.instance("pose", pose, Pose, "a Pose (ClosedChain.inverse)")
+        target = values.vector("target_m", target_m, 3)
+        q = self._joints("pose.q", pose.q_all)
         if self._last is not None and np.array_equal(self._last[0], q):
             a = self._last[1]
         else:
             a = self._evaluate(q, pose.p_m)[1].copy()
         rhs = np.zeros(a.shape[0])
-        rhs[-3:] = np.asarray(target_m, dtype=float) - pose.p_m
+        rhs[-3:] = target - pose.p_m
         try:
             return q + np.linalg.solve(a, rhs)
         except np.linalg.LinAlgError:
@@ -331,6 +346,24 @@ class ClosedChain:
             raise SingularPoseError(f"the {what} Jacobian", cond)
         raise ConvergenceError(what, res_norm, MAX_ITERATIONS)
 
+    def _joints(self, name: str, q: Any) -> np.ndarray:
+        """``q`` checked as finite values of every joint, shape (Σ nq,)."""
+        return values.vector(name, q, int(self.offsets[-1]))
+
+    def _check_commands(self, q_actuated: Any, q: np.ndarray) -> None:
+        """Refuse actuator values (readings + offsets, in ``q``) outside their URDF limits."""
+        for k, i in enumerate(self.actuated_idx):
+            if not self.lower[i] - 1e-12 <= q[i] <= self.upper[i] + 1e-12:
+                limb = int(np.searchsorted(self.offsets, i, side="right") - 1)
+                joint = self.mechanism.limbs[limb].joint_names[i - int(self.offsets[limb])]
+                raise InvalidArgumentError(
+                    "q_actuated",
+                    q_actuated,
+                    f"entry {k}, actuator '{joint}' of limb '{self.mechanism.limbs[limb].name}', would be at "
+                    f"{q[i]:.6g} [rad or m], outside its limits [{self.lower[i]:.6g}, {self.upper[i]:.6g}]; "
+                    "command values within the URDF limits (or build the chain with check_limits=False)",
+                )
+
     def _check_limits(self, q: np.ndarray, target: np.ndarray) -> None:
         if self.check_limits:
             err = self.limit_violation(q, target)
@@ -344,6 +377,8 @@ class ClosedChain:
             q: All joint values [rad or m].
             target: The target of P the solution was for, shape (3,) [m] (named in the error).
         """
+        q = self._joints("q", q)
+        target = values.vector("target", target, 3)
         bad = np.flatnonzero((q < self.lower - 1e-12) | (q > self.upper + 1e-12))
         if not bad.size:
             return None
@@ -366,6 +401,7 @@ class ClosedChain:
         Returns:
             ``(limb, loop, (frame a, frame b), translation gap [m], rotation gap [rad])``.
         """
+        q = self._joints("q", q)
         worst: tuple[str, str, tuple[str, str], float, float] | None = None
         for i, (limb, m) in enumerate(zip(self.mechanism.limbs, self.models, strict=True)):
             for lp, dist, ang in loop_gaps(limb, m, q[self.offsets[i] : self.offsets[i + 1]]):
@@ -379,7 +415,7 @@ class ClosedChain:
         Returns:
             ``(limb, limb 0, translation gap [m], rotation gap [rad])``.
         """
-        oMp = self.platform_placements(q)
+        oMp = self.platform_placements(self._joints("q", q))
         worst = (self.mechanism.limbs[0].name, self.mechanism.limbs[0].name, 0.0, 0.0)
         best = -1.0
         for lb, m in zip(self.mechanism.limbs[1:], oMp[1:], strict=True):

@@ -18,6 +18,7 @@ import pinocchio as pin
 
 import pkmtol.values as values
 from pkmtol.exceptions import (
+    InvalidArgumentError,
     InvalidRequestError,
     JointLimitError,
     KinematicsError,
@@ -79,6 +80,11 @@ class HybridChain:
             raise InvalidRequestError(
                 f"mechanism '{mechanism.name}' has no tool chain; add a [tool] table (docs/hybrid.md)"
             )
+        values.optional(values.instance, "chain", chain, ClosedChain, "a ClosedChain of this mechanism")
+        values.optional(values.instance, "tool_model", tool_model, pin.Model, "pin.Model (the tool chain's)")
+        if tool_model is not None and tool_model.nq != mechanism.tool.nq:
+            raise InvalidArgumentError("tool_model", tool_model, f"expected nq {mechanism.tool.nq}")
+        values.flag("check_limits", check_limits)
         self.mechanism = mechanism
         self.tool: Tool = mechanism.tool
         self.chain = chain or ClosedChain(mechanism)
@@ -108,7 +114,12 @@ class HybridChain:
 
     def evaluate(self, pose: Pose, q_tool: np.ndarray) -> HybridPose:
         """The machine at a module pose and tool joints (residual and condition left at 0)."""
-        return self._assemble(pose, self._tangent(pose), np.asarray(q_tool, dtype=float))
+        values.instance("pose", pose, Pose, "a Pose of the module (ClosedChain.inverse)")
+        return self._assemble(pose, self._tangent(pose), self._tool_q("q_tool", q_tool))
+
+    def _tool_q(self, name: str, q: object) -> np.ndarray:
+        """``q`` checked as finite values of the tool chain's joints, shape (nq_t,)."""
+        return values.vector(name, q, self.tool.nq)
 
     def inverse(
         self, tcp_m: np.ndarray, axis: np.ndarray | None = None, guess: HybridPose | None = None
@@ -127,8 +138,9 @@ class HybridChain:
             JointLimitError: a tool joint beyond its URDF limits at the solution.
             SingularPoseError: the task Jacobian is singular at the solution.
         """
-        target = values.vector("tcp_m", tcp_m, 3)
+        target = values.within_length("tcp_m", values.vector("tcp_m", tcp_m, 3))
         across = self._across(axis)
+        values.optional(values.instance, "guess", guess, HybridPose, "a solved HybridPose (HybridChain.home)")
         cur = guess if guess is not None else self.home()
         q_tool = cur.q_tool.copy()
         if self.wrist_offset_m is not None and across is not None:  # a decoupled wrist: P from the TCP
@@ -188,10 +200,16 @@ class HybridChain:
         Returns:
             ``(module pose, oMt)``: the module's actual pose and the TCP placement in K.
         """
-        pose = self.chain.forward(np.asarray(u_module, dtype=float), module_guess, module_offsets)
-        q = np.asarray(q_tool, dtype=float) + (0.0 if tool_offsets is None else np.asarray(tool_offsets))
+        q = self._tool_q("q_tool", q_tool)
+        if tool_offsets is not None:
+            q = q + self._tool_q("tool_offsets", tool_offsets)
+        pose = self.chain.forward(u_module, module_guess, module_offsets)
         pMt, _ = tool_frames(self.tool, self.tool_model, self.tool_data, q)
-        return pose, pose.oMp * pMt
+        oMt = pose.oMp * pMt
+        beyond = self.limit_violation(q, oMt.translation)  # a tool joint outside its limits (as inverse)
+        if beyond is not None:
+            raise beyond
+        return pose, oMt
 
     def _finish(self, cur: HybridPose, jac: np.ndarray, size: float, target: np.ndarray) -> HybridPose:
         s = np.linalg.svd(jac, compute_uv=False)
@@ -234,6 +252,8 @@ class HybridChain:
         """
         act = self.actuated
         q = np.array(q_tool, dtype=float)
+        if not len(q):  # every module solve of the batch failed
+            return q[:, act]
         for _ in range(MAX_ITERATIONS):
             rt, _, jt = self.kinematics.frames(q)
             rot = rot_p @ rt
@@ -311,6 +331,8 @@ class HybridChain:
 
     def limit_violation(self, q_tool: np.ndarray, target: np.ndarray) -> JointLimitError | None:
         """The error for the first tool joint outside its URDF limits, or None."""
+        q_tool = self._tool_q("q_tool", q_tool)
+        values.vector("target", target, 3)
         if not self.check_limits:
             return None
         bad = np.flatnonzero((q_tool < self._lower - 1e-12) | (q_tool > self._upper + 1e-12))
@@ -360,6 +382,7 @@ class HybridChain:
         if axis is None:
             raise InvalidRequestError("a machine with two wrist actuators needs a target tool axis")
         a = values.vector("axis", axis, 3)
+        a = a / max(float(np.max(np.abs(a))), 1e-300)  # a direction: 1e308 entries do not overflow
         n = float(np.linalg.norm(a))
         if not n > 1e-12:
             raise InvalidRequestError(f"the target tool axis must be a non-zero vector, got {a.tolist()}")
@@ -384,13 +407,19 @@ class HybridChain:
         Returns:
             Per target: its pose, or the error :meth:`inverse` raises for it.
         """
-        targets = np.asarray(tcp_m, dtype=float).reshape(-1, 3)
+        targets = values.within_length("tcp_m", values.array_of_shape("tcp_m", tcp_m, (None, 3)))
         b = len(targets)
+        values.instances("guesses", guesses, HybridPose, "solved HybridPose", b)
+        if not b:
+            return []
         if axes is None:
             self._across(None)
             across = None
         else:
-            a = np.asarray(axes, dtype=float).reshape(b, 3)
+            a = values.array_of_shape("axes", axes, (b, 3))
+            a = a / np.maximum(np.abs(a).max(axis=1, keepdims=True), 1e-300)
+            if not np.all(np.linalg.norm(a, axis=1) > 1e-12):
+                raise InvalidArgumentError("axes", axes, "every tool axis must be a non-zero vector")
             if not self.actuated:
                 self._across(a[0])
             across = across_many(a / np.linalg.norm(a, axis=1, keepdims=True))

@@ -32,11 +32,18 @@ def perturbed_limb_models(mechanism: Mechanism, eps: Sequence[np.ndarray]) -> li
         and loop frames ``placement · exp6(ε_loop)``.
     """
     values.instance("mechanism", mechanism, Mechanism, "a pkmtol.Mechanism")
-    if isinstance(eps, str) or len(eps) != len(mechanism.limbs):
+    if (
+        isinstance(eps, str | bytes | dict)
+        or not isinstance(eps, Sequence | np.ndarray)
+        or len(eps) != len(mechanism.limbs)
+    ):
         raise InvalidArgumentError("eps", eps, f"need {len(mechanism.limbs)} arrays, one per limb")
+    eps = [
+        values.array_of_shape(f"eps[{i}]", e, (limb.n_origins, 6))
+        for i, (limb, e) in enumerate(zip(mechanism.limbs, eps, strict=True))
+    ]
     out = []
     for limb, e in zip(mechanism.limbs, eps, strict=True):
-        e = np.asarray(e, dtype=float)
         if not e.any():
             out.append(limb.model)  # unperturbed limbs are shared, never modified
             continue

@@ -65,6 +65,7 @@ class TreeBatch:
 
     def __init__(self, tree: LoopTree, check_limits: bool = True) -> None:
         values.instance("tree", tree, LoopTree, "a pkmtol LoopTree")
+        values.flag("check_limits", check_limits)
         self.tree = tree
         self.tables = TreeTables.of(tree)
         self.n_joints = tree.nq
@@ -111,8 +112,8 @@ class TreeBatch:
             the task point, ``jacobians`` the task frame's LOCAL Jacobian); a problem's error
             is an :class:`UnreachableTargetError`, :class:`JointLimitError` or :class:`SingularPoseError`.
         """
-        targets = np.asarray(targets_m, dtype=float).reshape(-1, 3)
-        q0 = np.array(guesses, dtype=float).reshape(len(targets), self.n_joints)
+        targets = values.within_length("targets_m", values.array_of_shape("targets_m", targets_m, (None, 3)))
+        q0 = values.array_of_shape("guesses", guesses, (len(targets), self.n_joints)).copy()
         sols = self._newton(q0, np.ones(self.n_joints, dtype=bool), targets, "inverse kinematics")
         errors = list(sols.errors)
         outside = np.asarray(
@@ -143,24 +144,26 @@ class TreeBatch:
             guesses: Shape (B, n): initial guesses for all joints.
             offsets: Shape (B, n): joint zero offsets (only the actuated entries matter).
         """
-        q = np.array(guesses, dtype=float).reshape(-1, self.n_joints)
-        q[:, self.actuated_idx] = np.asarray(q_actuated, dtype=float).reshape(len(q), -1)
+        q = values.array_of_shape("guesses", guesses, (None, self.n_joints)).copy()
+        act = self.actuated_idx
+        q[:, act] = values.array_of_shape("q_actuated", q_actuated, (len(q), act.size))
         if offsets is not None:
-            q[:, self.actuated_idx] += np.asarray(offsets, dtype=float).reshape(len(q), -1)[
-                :, self.actuated_idx
-            ]
+            q[:, act] += values.array_of_shape("offsets", offsets, q.shape)[:, act]
         free = np.ones(self.n_joints, dtype=bool)
         free[self.actuated_idx] = False
         return self._newton(q, free, None, "forward kinematics")
 
     def predict(self, sols: Solutions, index: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
         """First-order guesses for ``targets_m`` from solved problems ``index``: ``q + A⁻¹[0; Δp]``."""
-        index = np.asarray(index, dtype=int)
-        dp = np.asarray(targets_m, dtype=float).reshape(-1, 3) - sols.p_m[index]
+        values.instance("sols", sols, Solutions, "the Solutions of TreeBatch.inverse")
+        index = values.indices("index", index, len(sols.q))
+        dp = values.array_of_shape("targets_m", targets_m, (len(index), 3)) - sols.p_m[index]
         return sols.q[index] + (sols.system_inverse[index][:, :, -3:] @ dp[:, :, None])[:, :, 0]
 
     def system(self, q: np.ndarray, targets: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, TreePoses]:
         """Residuals (b, rows), Jacobians (b, rows, n) and the kinematics at ``q`` (b, n)."""
+        q = values.array_of_shape("q", q, (None, self.n_joints), finite=False)  # Newton iterates
+        targets = values.optional(values.array_of_shape, "targets", targets, (len(q), 3), finite=False)
         poses = forward(self.tables, q)
         b = len(poses.joint)
         rows = self.n_equations + (self.tree.task.rows if targets is not None else 0)
@@ -197,6 +200,7 @@ class TreeBatch:
 
     def worst_loop(self, q: np.ndarray) -> tuple[str, str, tuple[str, str], float, float]:
         """The loop with the largest gap at ``q`` (n,): ``(mechanism, loop, frames, gap [m], [rad])``."""
+        q = values.array_of_shape("q", q, (self.n_joints,), finite=False)  # a diverged solve: its gaps
         poses = forward(self.tables, q[None])
         worst = (self.tree.name, "-", ("", ""), 0.0, 0.0)
         for lp in self.tree.loops:
@@ -209,6 +213,8 @@ class TreeBatch:
 
     def limit_violation(self, q: np.ndarray, target: np.ndarray) -> JointLimitError | None:
         """The error for the first joint of ``q`` outside its limits, or None."""
+        q = values.vector("q", q, self.n_joints)
+        target = values.vector("target", target, 3)
         bad = np.flatnonzero((q < self.lower - 1e-12) | (q > self.upper + 1e-12))
         if not bad.size:
             return None
@@ -319,6 +325,7 @@ class TreeChain:
     """
 
     def __init__(self, batch: TreeBatch | LoopTree) -> None:
+        values.instance("batch", batch, (TreeBatch, LoopTree), "a TreeBatch or a LoopTree")
         self.batch = batch if isinstance(batch, TreeBatch) else TreeBatch(batch)
         self.tree = self.batch.tree
 
@@ -337,15 +344,16 @@ class TreeChain:
 
     def inverse(self, target_m: np.ndarray, q0: np.ndarray | None = None) -> Pose:
         """All joint values that put the task point at ``target_m`` (3,) [m] (errors as the batch's)."""
-        start = self.home() if q0 is None else np.asarray(q0, dtype=float)
-        return self.batch.inverse(np.asarray(target_m, dtype=float)[None], start[None]).pose(0)
+        target = values.vector("target_m", target_m, 3)
+        start = self.home() if q0 is None else values.vector("q0", q0, self.batch.n_joints)
+        return self.batch.inverse(target[None], start[None]).pose(0)
 
     def forward(self, q_actuated: np.ndarray, q0: np.ndarray, offsets: np.ndarray | None = None) -> Pose:
         """The pose for actuator readings ``q_actuated`` (f,) from the guess ``q0`` (n,)."""
-        off = None if offsets is None else np.asarray(offsets, dtype=float)[None]
-        return self.batch.forward(np.asarray(q_actuated, dtype=float)[None], np.asarray(q0)[None], off).pose(
-            0
-        )
+        n = self.batch.n_joints
+        off = None if offsets is None else values.vector("offsets", offsets, n)[None]
+        u = values.vector("q_actuated", q_actuated, self.batch.actuated_idx.size)
+        return self.batch.forward(u[None], values.vector("q0", q0, n)[None], off).pose(0)
 
 
 def loop_rows_world(

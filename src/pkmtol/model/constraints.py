@@ -34,7 +34,8 @@ from typing import Any, Protocol
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.exceptions import InvalidRequestError, URDFError
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, URDFError
 from pkmtol.model.limb import Limb
 
 
@@ -89,13 +90,24 @@ class ConstrainedModel:
         Raises:
             InvalidRequestError: not one vector per limb of that limb's size.
         """
-        if len(limb_q) != len(self.q_slices) or any(
-            np.size(x) != s.stop - s.start for x, s in zip(limb_q, self.q_slices, strict=False)
-        ):
-            raise InvalidRequestError(
-                f"need one joint vector per limb of sizes {[s.stop - s.start for s in self.q_slices]}"
+        sizes = [s.stop - s.start for s in self.q_slices]
+        if isinstance(limb_q, str | bytes | dict) or not isinstance(limb_q, Sequence | np.ndarray):
+            raise InvalidArgumentError(
+                "limb_q", limb_q, f"expected one joint vector per limb, of sizes {sizes}"
             )
-        return np.concatenate([np.asarray(x, dtype=float) for x in limb_q])
+        if len(limb_q) != len(self.q_slices):
+            raise InvalidRequestError(f"need one joint vector per limb of sizes {sizes}")
+        return np.concatenate(
+            [values.vector(f"limb_q[{k}]", x, n) for k, (x, n) in enumerate(zip(limb_q, sizes, strict=True))]
+        )
+
+    def _q_data(self, q: Any, data: Any) -> tuple[np.ndarray, Any]:
+        """``q`` checked (nq,) and ``data`` (a new ``pin.Data`` if None)."""
+        q = values.vector("q", q, self.model.nq)
+        values.optional(
+            values.instance, "data", data, pin.Data, "a pin.Data of this model (model.createData())"
+        )
+        return q, self.model.createData() if data is None else data
 
     def constraint_vector(self) -> Any:
         """The constraints as a ``pin.StdVec_ConstraintModel`` (for ``getConstraintsJacobian``, ADMM)."""
@@ -119,8 +131,8 @@ class ConstrainedModel:
         Shape (6·(L−1) + Σ loop rows,): a frame anchor's block is ``log6(oMc1⁻¹ · oMc2)`` [m, rad],
         a point anchor's ``R_1⁻¹ (p_2 − p_1)`` [m] (``calc`` after ``forwardKinematics``).
         """
-        data = self.model.createData() if data is None else data
-        pin.forwardKinematics(self.model, data, np.asarray(q, dtype=float))
+        q, data = self._q_data(q, data)
+        pin.forwardKinematics(self.model, data, q)
         out = []
         for c in self.constraints:
             cd = c.createData()
@@ -133,8 +145,7 @@ class ConstrainedModel:
 
         At a closed configuration it is the derivative of :meth:`residuals`.
         """
-        data = self.model.createData() if data is None else data
-        q = np.asarray(q, dtype=float)
+        q, data = self._q_data(q, data)
         models = self.constraint_vector()
         datas = pin.StdVec_ConstraintData()
         for cm in models:
@@ -162,7 +173,13 @@ def constraint_models(
     Raises:
         URDFError: a replacement model does not match its limb (joint count or names).
     """
-    limbs = mechanism.limbs
+    limbs = getattr(mechanism, "limbs", None)
+    if not isinstance(limbs, tuple) or len(limbs) < 2 or not all(isinstance(lb, Limb) for lb in limbs):
+        raise InvalidArgumentError(
+            "mechanism", mechanism, "expected a pkmtol.Mechanism (pkmtol.load_mechanism)"
+        )
+    if models is not None:
+        values.instances("models", models, pin.Model, "pin.Model")
     lms = list(models) if models is not None else [lb.model for lb in limbs]
     if len(lms) != len(limbs):
         raise URDFError(limbs[0].name, None, f"{len(lms)} limb models for {len(limbs)} limbs")

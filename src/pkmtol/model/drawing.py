@@ -33,13 +33,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
+import pkmtol.values as values
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError, MechanismFormatError
 from pkmtol.units import parse_length
 
 CONVENTIONS = ("normal", "uniform")
 #: Keys of the ``[drawing]`` table.
 TABLE_KEYS = ("convention", "k", "feature_length", "feature_lengths", "nominals")
 DEFAULT_K = 3.0
+#: Largest k of ±t = k·σ (a Gaussian process leaves 1.5e-23 of its parts outside ±10σ already).
+MAX_K = 100.0
 #: Default feature length L of an axis-orientation zone [m].
 DEFAULT_FEATURE_LENGTH_M = 0.1
 
@@ -68,14 +71,21 @@ class DrawingSettings:
             raise InvalidRequestError(
                 f"unknown drawing convention {self.convention!r}; use {' or '.join(CONVENTIONS)}"
             )
-        if isinstance(self.k, bool) or not (math.isfinite(self.k) and self.k > 0):
-            raise InvalidRequestError(f"the k of ±t = k·σ must be a positive number, got {self.k!r}")
-        for what, value in [("feature_length", self.feature_length_m), *self.feature_lengths_m.items()]:
-            if not (math.isfinite(value) and value > 0):
-                raise InvalidRequestError(f"feature length {what!r} must be positive, got {value!r} m")
+        k = values.number("DrawingSettings.k", self.k)
+        if not 0 < k <= MAX_K:
+            raise InvalidArgumentError(
+                "DrawingSettings.k", self.k, f"the k of ±t = k·σ must be a positive number ≤ {MAX_K:g}"
+            )
+        values.length_m("DrawingSettings.feature_length_m", self.feature_length_m)
+        values.within_length("DrawingSettings.feature_length_m", self.feature_length_m)
+        values.lengths("DrawingSettings.feature_lengths_m", self.feature_lengths_m)
+        values.instance(
+            "DrawingSettings.nominals_m", self.nominals_m, Mapping, "a mapping of names to sizes [m]"
+        )
         for name, value in self.nominals_m.items():
-            if not (math.isfinite(value) and value >= 0):
-                raise InvalidRequestError(f"nominal size of {name!r} must be ≥ 0, got {value!r} m")
+            values.text("DrawingSettings.nominals_m", name)
+            values.within_length(f"DrawingSettings.nominals_m[{name!r}]", value)
+            values.number(f"DrawingSettings.nominals_m[{name!r}]", value, nonnegative=True)
 
     @property
     def factor(self) -> float:
@@ -97,10 +107,13 @@ class DrawingSettings:
 
     def feature_length(self, joint: str) -> float:
         """L for the axis of ``joint`` [m] (its own entry, else the default)."""
+        values.text("joint", joint)
         return float(self.feature_lengths_m.get(joint, self.feature_length_m))
 
     def with_convention(self, convention: str | None = None, k: float | None = None) -> DrawingSettings:
         """The same settings with the convention and/or k replaced (None: keep)."""
+        values.optional(values.choice, "convention", convention, CONVENTIONS)
+        values.optional(values.number, "k", k, positive=True)
         return replace(
             self,
             convention=self.convention if convention is None else convention,

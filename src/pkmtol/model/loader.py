@@ -59,6 +59,12 @@ def load_mechanism(
     """
     folder = values.path("folder", folder, "the path of a robot folder, e.g. 'robots/r2rps_ups'")
     path = folder / "mechanism.toml"
+    values.optional(values.instance, "doc", doc, Mapping, "a mapping (the parsed mechanism.toml) or None")
+    if urdf_texts is not None:
+        values.instance("urdf_texts", urdf_texts, Mapping, "a mapping of limb names to URDF texts, or None")
+        for key, text in urdf_texts.items():
+            values.text(f"urdf_texts[{key!r}]", text)
+    values.flag("check_home_closure", check_home_closure)
     if doc is not None:
         return _from_doc(folder, path, dict(doc), urdf_texts or {}, check_home_closure)
     if not folder.is_dir():

@@ -103,6 +103,15 @@ class PointTask(TaskRows):
 
     rows = 3
 
+    def __post_init__(self) -> None:
+        point = values.within_length("PointTask.point_m", values.vector("PointTask.point_m", self.point_m, 3))
+        object.__setattr__(self, "point_m", point)
+        if self.normal is not None:
+            n = values.vector("PointTask.normal", self.normal, 3)
+            if abs(float(np.linalg.norm(n)) - 1.0) > 1e-6:
+                raise InvalidArgumentError("PointTask.normal", self.normal, "expected a unit vector")
+            object.__setattr__(self, "normal", n)
+
     def projection(self) -> np.ndarray:
         """Shape (3, 3): ``I``, or ``I − n nᵀ`` for a planar task."""
         if self.normal is None:
@@ -112,11 +121,13 @@ class PointTask(TaskRows):
 
     def position(self, h: np.ndarray) -> np.ndarray:
         """The point in K (b, 3) for task-frame placements ``h`` (b, 4, 4) [m]."""
+        h = values.array_of_shape("h", h, (None, 4, 4), finite=False)
         return h[:, :3, :3] @ self.point_m + h[:, :3, 3]
 
     def residual(self, h: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """Task residual (b, 3): the point minus its target [m]."""
-        return self.position(h) - targets
+        p = self.position(h)
+        return p - values.array_of_shape("targets", targets, (len(p), 3), finite=False)
 
     def jacobian(self, h: np.ndarray, world: np.ndarray) -> np.ndarray:
         """Shape (b, 3, k): the point's velocity per unit of ``k`` variables.
@@ -126,6 +137,7 @@ class PointTask(TaskRows):
             world: Shape (b, 6, k): the task frame's spatial (world, ``[v_O; ω]``) motion per variable.
         """
         p = self.position(h)
+        world = values.array_of_shape("world", world, (len(p), 6, None), finite=False)
         return world[:, :3] - _cross_rows(p, world[:, 3:])
 
     def of_twist(self, lever_m: np.ndarray) -> np.ndarray:
@@ -133,6 +145,7 @@ class PointTask(TaskRows):
 
         ``(I − n nᵀ) [I  −[l×]]`` (the projection for a planar task).
         """
+        lever_m = values.array_of_shape("lever_m", lever_m, (None, 3), finite=False)
         b = len(lever_m)
         out = np.zeros((b, 3, 6))
         out[:, :, :3] = np.eye(3)
@@ -247,6 +260,8 @@ class LoopTree:
 
     def raw_block(self, kind: str, k: int) -> slice:
         """The raw columns of joint placement, error frame or loop ``k`` (``kind``: joint/frame/loop)."""
+        sizes = {"joint": self.nq, "frame": len(self.error_frames), "loop": len(self.loops)}
+        k = values.index("k", k, sizes[values.choice("kind", kind, sizes)])
         start = {"joint": 0, "frame": self.nq, "loop": self.nq + len(self.error_frames)}[kind]
         return slice(6 * (start + k), 6 * (start + k) + 6)
 
@@ -279,11 +294,11 @@ class LoopTree:
 
     def support(self, frame: int) -> np.ndarray:
         """Shape (nq,): True for each joint that moves ``frame`` (its path from the root)."""
-        return self._tables[0][frame]
+        return self._tables[0][values.index("frame", frame, self.model.nframes)]
 
     def moved_by(self, frame: int) -> np.ndarray:
         """Shape (n_raw,): True for each raw error that moves ``frame``."""
-        return self._tables[1][frame]
+        return self._tables[1][values.index("frame", frame, self.model.nframes)]
 
     @cached_property
     def _tables(self) -> tuple[np.ndarray, np.ndarray]:

@@ -91,7 +91,9 @@ class Mechanism:
 
     def task_error(self, displacement_m: np.ndarray) -> np.ndarray:
         """A displacement of P (..., 3) in K reduced to the task (its in-plane part for a planar task) [m]."""
-        d = np.asarray(displacement_m, dtype=float)
+        d = values.array("displacement_m", displacement_m)
+        if d.ndim == 0 or d.shape[-1] != 3:
+            raise InvalidArgumentError("displacement_m", displacement_m, "expected shape (..., 3) [m]")
         if self.task_normal is None:
             return d
         n = np.asarray(self.task_normal, dtype=float)
@@ -130,6 +132,12 @@ class Mechanism:
         values.number("design_beta", self.design_beta, positive=True)
         if not isinstance(self.description, str):
             raise InvalidArgumentError("description", self.description, "expected a string")
+        if self.task_normal is not None:
+            n = values.vector("task_normal", self.task_normal, 3)
+            if abs(float(np.linalg.norm(n)) - 1.0) > 1e-6:
+                raise InvalidArgumentError("task_normal", self.task_normal, "expected a unit vector")
+        if self.root is not None:
+            values.path("root", self.root, "a folder (pathlib.Path) or None")
         if self.tool is not None and not isinstance(self.tool, Tool):
             raise InvalidArgumentError("tool", self.tool, "expected a pkmtol.model.tool.Tool (make_tool)")
         if self.tool_directions is not None and not isinstance(self.tool_directions, ToolDirections):
@@ -265,6 +273,10 @@ class Mechanism:
             ClosedLoopError (and subclasses): a constraint, joint or frame pkmtol cannot take, or a
                 topology the cut into limbs refuses.
         """
+        values.instance("model", model, pin.Model, "a pin.Model (the tree)")
+        values.instances("constraint_models", constraint_models, object, "Pinocchio constraint models")
+        values.strings("actuated", actuated)
+        values.text("task_frame", task_frame)
         limbs, tree = limbs_from_constraint_models(
             model, constraint_models, actuated, task_frame, home, limb_names, name
         )
@@ -309,7 +321,7 @@ class Mechanism:
             target_m=values.length_m("target_m", target_m),
             betas=tuple(float(b) for b in betas_arr),
             design_beta=values.number("design_beta", design_beta, positive=True),
-            root=None if root is None else Path(root),
+            root=None if root is None else values.path("root", root, "a folder (str or pathlib.Path)"),
             description=description,
             extra=dict(extra or {}),
             task_normal=None if task_normal is None else _unit(task_normal),
@@ -321,7 +333,8 @@ class Mechanism:
 
 
 def _unit(v: Sequence[float] | np.ndarray) -> np.ndarray:
-    n = np.asarray(v, dtype=float).reshape(3)
+    n = values.vector("task_normal", v, 3)
+    n = n / max(float(np.max(np.abs(n))), 1e-300)  # 1e308 entries do not overflow the norm
     norm = float(np.linalg.norm(n))
     if not np.isfinite(norm) or norm < 1e-12:
         raise InvalidRequestError(f"the normal of a planar task must be a non-zero vector, got {n.tolist()}")

@@ -117,6 +117,7 @@ def read_mjcf(path: Path | str, actuated: Sequence[str] | None = None) -> MjcfTr
             read, an actuated joint that is not in the file, no actuator, or no weld.
     """
     path = values.path("path", path)
+    values.optional(values.strings, "actuated", actuated)
     root = read_xml(path)
     check_structure(path, root)
     check_tendons(path, root)
@@ -274,6 +275,7 @@ def mjcf_limbs(
             :func:`~pkmtol.model.tree_cut.cut_tree`; also both ``home`` and ``keyframe``, or an
             unknown keyframe.
     """
+    values.text_or_none("keyframe", keyframe)
     tree = read_mjcf(path, actuated)
     if home is not None and keyframe is not None:
         raise MJCFError(tree.path, "keyframe", "give either home joint values or a keyframe, not both")
@@ -396,6 +398,7 @@ def tree_from_mjcf(
         keyframe: The ``<key>`` whose ``qpos`` closes the loops (default ``home`` if the file has it).
         home: Joint values by name instead of a keyframe.
     """
+    values.text_or_none("keyframe", keyframe)
     mj = read_mjcf(path, actuated)
     src = str(mj.path)
     model = mj.model

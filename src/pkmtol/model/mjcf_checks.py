@@ -134,6 +134,7 @@ def check_structure(path: Path, root: ET.Element) -> None:
             f"drops the rest ({', '.join(lost)}); put every limb inside one jointless base body: "
             "<worldbody><body name='base'> ...all limbs... </body></worldbody>",
         )
+    _check_geoms(path, root)
 
 
 def check_model(path: Path, root: ET.Element, model: pin.Model) -> None:
@@ -387,3 +388,28 @@ def _names(model: pin.Model, kind: pin.FrameType) -> Sequence[str]:
 
 def _label(el: ET.Element) -> str:
     return str(el.get("name") or f"<{el.tag}> without a name")
+
+
+#: The ``<geom>`` attributes that hold numbers (a size must be ≥ 0).
+GEOM_NUMBERS = ("size", "pos", "quat", "euler", "axisangle", "fromto", "xyaxes", "zaxis")
+
+
+def _check_geoms(path: Path, root: ET.Element) -> None:
+    """Refuse a ``<geom>`` whose numbers are not finite (or whose size is negative), naming its body."""
+    for body in root.iter("body"):
+        for geom in body.findall("geom"):
+            for attr in GEOM_NUMBERS:
+                text = geom.get(attr)
+                if text is None:
+                    continue
+                try:
+                    nums = [float(x) for x in text.split()]
+                except ValueError:
+                    nums = []
+                if not nums or not np.isfinite(nums).all() or (attr == "size" and min(nums) < 0):
+                    need = "finite numbers ≥ 0" if attr == "size" else "finite numbers"
+                    raise MJCFError(
+                        path,
+                        _label(body),
+                        f"its <geom '{_label(geom)}'> {attr} = '{text}': expected {need}; fix the geometry",
+                    )

@@ -13,6 +13,8 @@ from pkmtol.exceptions import InvalidArgumentError
 KINDS = ("cylinder", "points")
 #: Most grid points a task space may have (each costs an inverse kinematics and a separation).
 MAX_GRID_POINTS = 1_000_000
+#: Most random points one call of ``sample`` draws (3·10⁸ floats: 2.4 GB).
+MAX_SAMPLES = 100_000_000
 
 
 @dataclass(frozen=True)
@@ -126,6 +128,8 @@ class TaskSpace:
         A cylinder is sampled uniformly in volume; an explicit list by drawing its points with
         replacement.
         """
+        values.generator("rng", rng)
+        count = values.count("count", count, high=MAX_SAMPLES)
         if self.kind == "points":
             g = self.grid()
             return g[rng.integers(0, len(g), size=count)]
@@ -201,6 +205,8 @@ class ToolDirections:
 
     def sample(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """Directions (count, 3) uniformly distributed over the cone's cap of the unit sphere."""
+        values.generator("rng", rng)
+        count = values.count("count", count, high=MAX_SAMPLES)
         a, u, v = self._frame()
         c = 1.0 - rng.random(count) * (1.0 - np.cos(self.half_angle_rad))
         s = np.sqrt(np.clip(1.0 - c * c, 0.0, None))

@@ -112,6 +112,7 @@ class Tool:
 
     def with_locked(self, locked: Mapping[str, float]) -> Tool:
         """The same chain with the joints ``locked`` (name → value [rad or m]) held (3-axis work)."""
+        locked = values.joint_values("locked", locked)
         home = self.home.copy()
         names = self.joint_names
         for jname, value in locked.items():

@@ -14,6 +14,7 @@ from typing import Any
 
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.exceptions import (
     ClosedLoopError,
     ClosureFrameError,
@@ -147,6 +148,8 @@ def cut_tree(
             a loop joining two branches that both have a motor, a motor on no limb, or a moving
             joint on no limb.
     """
+    values.text_or_none("platform_link", platform_link)
+    values.optional(values.strings, "limb_names", limb_names)
     src = Path(source) if source is not None else Path("<tree>")
     loops = list(sidecar.loops) or _convention_pairs(model, src)
     if not loops:

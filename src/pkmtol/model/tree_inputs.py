@@ -38,6 +38,7 @@ CONSTRAINT_TYPES = {"fixed": "6d", "weld": "6d", "spherical": "3d", "ball": "3d"
 
 def home_vector(model: pin.Model, home: Mapping[str, float] | None, source: str) -> np.ndarray:
     """Joint values (nq,) from values by joint name (others 0), or ClosedLoopError naming an unknown joint."""
+    home = values.optional(values.joint_values, "home", home)
     q = np.zeros(model.nq)
     for name, value in (home or {}).items():
         if not model.existJointName(name):
@@ -48,6 +49,7 @@ def home_vector(model: pin.Model, home: Mapping[str, float] | None, source: str)
 
 def actuated_indices(model: pin.Model, names: Sequence[str] | None, source: str) -> tuple[int, ...]:
     """Q indices of the actuated joints ``names`` (default: the joints named ``*mot*``), checked."""
+    values.optional(values.strings, "actuated", names)
     joints = list(model.names[1:])
     chosen = list(names) if names is not None else [n for n in joints if MOTOR_MARK in n]
     for n in chosen:
@@ -305,6 +307,11 @@ def tree_from_constraint_models(
         name: The mechanism's name (default ``model.name``).
     """
     values.instance("model", model, pin.Model, "a pinocchio.Model (the tree)")
+    values.instances("constraint_models", constraint_models, object, "Pinocchio constraint models")
+    values.strings("actuated", actuated)
+    values.text("task_frame", task_frame)
+    values.text_or_none("platform_frame", platform_frame)
+    values.text_or_none("name", name)
     src = name or str(model.name) or "model"
     m = pin.Model(model)
     loops = []

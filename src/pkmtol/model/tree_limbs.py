@@ -12,6 +12,7 @@ from typing import Any
 
 import pinocchio as pin
 
+import pkmtol.values as values
 from pkmtol.exceptions import ClosedLoopError
 from pkmtol.model.limb import Limb, frame_id, make_limb
 from pkmtol.model.tree_cut import LimbCut, TreeCut
@@ -121,7 +122,7 @@ def cut_limbs(
         URDFError: a limb is not a serial chain of 1-DOF joints (:func:`~pkmtol.model.limb.make_limb`).
     """
     source = Path(source)
-    home = dict(home or {})
+    home = values.optional(values.joint_values, "home", home) or {}
     names = set(tree.names[1:])
     for jname in home:
         if jname not in names:

@@ -49,6 +49,7 @@ def check_urdf_tree(root: ET.Element, limb: str, path: Path | None) -> None:
         if name in links:
             fail(f"link '{name}' is defined twice; link names must be unique")
         links.append(str(name))
+        _check_geometry(link, str(name), fail)
     parent_of: dict[str, tuple[str, str]] = {}
     joints: set[str] = set()
     for joint in root.findall("joint"):
@@ -119,6 +120,41 @@ def _check_joint(joint: ET.Element, name: str, links: Sequence[str], fail: _Fail
                     _numbers(str(limit.get(attr)), 1, f"limit {attr}", bad)
             if lo > hi:
                 bad(f"its limits are reversed (lower {lo:g} > upper {hi:g})")
+
+
+#: Per geometry element: its size attributes and how many numbers each holds.
+GEOMETRY_SIZES = {
+    "box": (("size", 3),),
+    "cylinder": (("radius", 1), ("length", 1)),
+    "sphere": (("radius", 1),),
+}
+
+
+def _check_geometry(link: ET.Element, name: str, fail: _Fail) -> None:
+    """Refuse a visual or collision of ``link`` whose origin, size or mesh scale is not finite (≥ 0)."""
+
+    def bad(problem: str) -> NoReturn:
+        fail(f"link '{name}': {problem}; fix the numbers of its <visual>/<collision>")
+
+    for tag in ("visual", "collision"):
+        for item in link.findall(tag):
+            origin = item.find("origin")
+            for attr in ("xyz", "rpy"):
+                if origin is not None and origin.get(attr) is not None:
+                    _numbers(str(origin.get(attr)), 3, f"<{tag}> origin {attr}", bad)
+            geometry = item.find("geometry")
+            for shape in [] if geometry is None else list(geometry):
+                sizes = [
+                    *GEOMETRY_SIZES.get(shape.tag, ()),
+                    *((("scale", 3),) if shape.tag == "mesh" else ()),
+                ]
+                for attr, n in sizes:
+                    text = shape.get(attr)
+                    if text is None and attr == "scale":
+                        continue
+                    numbers = _numbers(str(text or ""), n, f"<{tag}> <{shape.tag}> {attr}", bad)
+                    if any(v < 0 for v in numbers):
+                        bad(f"<{tag}> <{shape.tag}> {attr} = {text!r}: expected numbers ≥ 0")
 
 
 def _numbers(text: str, n: int, what: str, bad: _Fail) -> list[float]:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pkmtol.values as values
 from pkmtol.design.job import DesignResult
 from pkmtol.design.signoff import sign_off
 from pkmtol.exceptions import FiguresError, OutputError
@@ -323,7 +324,13 @@ def write_report(
         OutputError: the folder does not exist or the file cannot be written.
         ViewerError: meshcat is missing or its server did not start.
     """
-    path = Path(path)
+    values.instance("result", result, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
+    path = values.path("path", path, "a file path for the HTML report (str or pathlib.Path)")
+    values.optional(values.instance, "prov", prov, Provenance, "a Provenance (present.provenance) or None")
+    if scene_options is not None:
+        from pkmtol.present.viewer.options import SceneOptions
+
+        values.instance("scene_options", scene_options, SceneOptions, "a SceneOptions or None")
     if not (path.parent if str(path.parent) else Path(".")).is_dir():
         raise OutputError(path, f"folder {path.parent} does not exist; create it or choose another --report")
     report = render_report(result, prov, scene_options)

@@ -50,6 +50,12 @@ def write_outputs(
         FiguresError: ``figures=True`` and matplotlib is missing (nothing is written).
     """
     values.flag("figures", figures)
+    out_dir = values.path("out_dir", out_dir, "a folder path (str or pathlib.Path)")
+    if extra is not None:
+        values.instance("extra", extra, dict, "a dict of file names to bytes, or None")
+        for name, data in extra.items():
+            values.text("extra", name)
+            values.instance(f"extra[{name!r}]", data, bytes, "bytes (the file's contents)")
     contents = render_tables(r, units)
     if figures:
         from pkmtol.present.figures import render_figures

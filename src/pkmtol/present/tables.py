@@ -34,7 +34,7 @@ from pkmtol.present.design_tables import fmt_tolerance as _fmt_tol
 from pkmtol.present.headline import headline_lines
 from pkmtol.present.hybrid_tables import hybrid_ideal_text, sub_assemblies, sub_assembly_lines
 from pkmtol.present.report_tables import SHARE_CSV, SHARE_HEADER, share_cells, signoff_json, signoff_text
-from pkmtol.units import display, display_unit
+from pkmtol.units import DISPLAY_UNITS, display, display_unit
 
 
 def _num(x: float) -> float | None:
@@ -394,6 +394,7 @@ def overconstraint_lines(grid: Sweep, names_all: list[str]) -> list[str]:
 def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> str:
     """The whole report as terminal text or Markdown (tolerances in mm/mrad, or µm/µrad with ``um``)."""
     values.instance("r", r, DesignResult, "a pkmtol.DesignResult (pkmtol.allocate)")
+    values.choice("units", units, DISPLAY_UNITS)
     table = _md_table if markdown else text_table
     h = (lambda s: f"\n## {s}\n") if markdown else (lambda s: f"\n{s}\n{'=' * len(s)}")
     col = r.design_column
