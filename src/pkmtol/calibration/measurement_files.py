@@ -305,8 +305,8 @@ def _group_rows(U: np.ndarray) -> np.ndarray:
     scaled = U / cell
     keys = np.round(scaled)
     frac = scaled - keys
-    near = np.abs(frac) > 0.5 - 1.0 / _BIN
-    near_any = near.any(axis=1).tolist()
+    near: np.ndarray = np.abs(frac) > 0.5 - 1.0 / _BIN
+    near_any = np.asarray(near.any(axis=1), dtype=bool).tolist()
     bins: dict[tuple[float, ...], list[int]] = {}
     poses: list[list[float]] = []
     out = np.empty(len(U), dtype=int)

@@ -105,7 +105,7 @@ def read_tolerances(
         elif classes_in_mode.get(pname) == "identified":
             tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
     design = doc.get("method_design")
-    what = f"'{design['method']}' design" if chosen else "FOSM design-β tolerances"
+    what = f"'{design['method']}' design" if chosen and isinstance(design, dict) else "FOSM design-β tolerances"
     return tol, f"{what} of {path}"
 
 
@@ -119,7 +119,7 @@ def _field(path: Path, doc: dict[str, Any], key: str, kind: type) -> Any:
             key,
             f"expected {want}, got {_short(value)}; is this an allocation.json of `pkmtol allocate`?",
         )
-    return float(value) if kind is float else value
+    return float(value) if kind is float and value is not None else value
 
 
 def _chosen(path: Path, design: Any) -> dict[str, float]:
