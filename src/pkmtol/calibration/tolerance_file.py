@@ -105,7 +105,8 @@ def read_tolerances(
         elif classes_in_mode.get(pname) == "identified":
             tol[i] = manufacturing[i]  # removed by the calibration: drawn at manufacturing σ
     design = doc.get("method_design")
-    what = f"'{design['method']}' design" if chosen and isinstance(design, dict) else "FOSM design-β tolerances"
+    method = design.get("method") if chosen and isinstance(design, dict) else None
+    what = f"'{method}' design" if method is not None else "FOSM design-β tolerances"
     return tol, f"{what} of {path}"
 
 
