@@ -215,6 +215,19 @@ def _missing_mesh(tmp: Path) -> Any:
         return load_mechanism(folder)
 
 
+def _warned(category: type[Warning], run: Callable[[Path], Any]) -> Callable[[Path], Any]:
+    """``run`` with ``category`` warnings raised as errors (so the catalogue can catch the first)."""
+
+    def go(tmp: Path) -> Any:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", category)
+            return run(tmp)
+
+    return go
+
+
 def jit_switch_misspelt(tmp: Path) -> Any:
     """The compiled kernels' switch set to a value that is neither on nor off (read on first solve)."""
     before = os.environ.get(acceleration.ENVIRONMENT)
@@ -230,6 +243,7 @@ def jit_switch_misspelt(tmp: Path) -> Any:
 
 L4_LAST = "  [0.0, 0.0, 0.0, 0.0],\n]\nend = [0.0, 90.0]\nlimits = [[-90.0, 90.0], [-90.0, 90.0], [0.3, 1.6]]"
 L4_U1 = '<joint name="limb4_u1" type="revolute">'
+L4_U1_LIMIT = '<child link="limb4_l1" />\n    <axis xyz="0 0 1" />\n    <limit lower="-1.5707963267948966" upper="1.5707963267948966"'
 MF, UE, IA, UK = E.MechanismFormatError, E.URDFError, E.InvalidArgumentError, E.UnknownKeyError
 
 
@@ -349,10 +363,12 @@ CASES: list[Case] = [
     Case("URDF", "a kinematic loop (a link that is the child of two joints)", urdf('<child link="limb4_l3" />', '<child link="limb4_l1" />'), UE, ("limb4_l1", "child of two joints", "kinematic loop")),
     Case("URDF", "a joint whose parent is its child", urdf('<child link="limb4_l1" />', '<child link="base" />'), UE, ("limb4_u1", "kinematic loop")),
     Case("URDF", "two joints with one name", urdf('<joint name="limb4_u2" type="revolute">', '<joint name="limb4_u1" type="revolute">'), UE, ("limb4_u1", "defined twice")),
-    Case("URDF", "a revolute joint without `<limit>`", urdf('<limit lower="-1.5707963267948966" upper="1.5707963267948966" effort="1000" velocity="1" />\n  </joint>\n  <joint name="limb4_u2"', '</joint>\n  <joint name="limb4_u2"'), UE, ("limb4_u1", "needs <limit")),
+    Case("URDF", "a revolute joint without `<limit>` (a warning: ±π assumed)", _warned(E.MissingLimitWarning, urdf('<limit lower="-1.5707963267948966" upper="1.5707963267948966" effort="1000" velocity="1" />\n  </joint>\n  <joint name="limb4_u2"', '</joint>\n  <joint name="limb4_u2"')), E.MissingLimitWarning, ("limb4_u1", "no lower/upper limit")),
     Case("URDF", "URDF limits reversed", urdf('lower="0.3" upper="1.6"', 'lower="1.6" upper="0.3"'), UE, ("limb4_p3", "reversed")),
     Case("URDF", "an unknown joint type", urdf('type="prismatic"', 'type="slider"'), UE, ("limb4_p3", "unknown type 'slider'")),
-    Case("URDF", "a continuous joint", urdf(L4_U1, '<joint name="limb4_u1" type="continuous">'), UE, ("limb 'limb4'", "limb4_u1", "revolute or prismatic")),
+    Case("URDF", "a continuous joint (a warning: read as revolute over ±π)", _warned(E.MissingLimitWarning, urdf(L4_U1, '<joint name="limb4_u1" type="continuous">', "limb4.urdf")), E.MissingLimitWarning, ("limb 'limb4'", "limb4_u1", "is continuous")),
+    Case("URDF", "a revolute `<limit>` without lower/upper (a warning: ±π assumed)", _warned(E.MissingLimitWarning, urdf(L4_U1_LIMIT, L4_U1_LIMIT.split("<limit")[0] + "<limit")), E.MissingLimitWarning, ("limb 'limb4'", "limb4_u1", "assumed [-3.14159, 3.14159] rad")),
+    Case("URDF", "a prismatic `<limit>` without lower/upper", urdf('<limit lower="0.3" upper="1.6"', "<limit"), E.MissingLimitError, ("limb 'limb4'", "limb4_p3", "stroke"), {"limb": "limb4", "joint": "limb4_p3"}),
     Case("URDF", "a parent link not in the file", urdf('<parent link="limb4_l1" />', '<parent link="limb4_lx" />'), UE, ("limb4_lx", "is not a <link>")),
     Case("URDF", "a limit without `effort` (urdfdom's reason captured)", urdf('lower="0.3" upper="1.6" effort="1000"', 'lower="0.3" upper="1.6"'), UE, ("limb 'limb4'", "limit has no effort")),
     Case("URDF", "malformed XML", urdf("</robot>", "</robo>"), UE, ("limb 'limb4'", "malformed XML")),

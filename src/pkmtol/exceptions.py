@@ -7,6 +7,7 @@ programmatically.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -86,6 +87,29 @@ class URDFError(PkmtolError):
         self.path = None if path is None else Path(path)
         where = f" ({self.path})" if self.path is not None else ""
         super().__init__(f"limb '{limb}'{where}: {problem}")
+
+
+class MissingLimitError(URDFError):
+    """A prismatic joint of a URDF has no ``lower``/``upper`` limit, so its stroke is unknown.
+
+    A revolute joint without limits gets ±π and a :class:`MissingLimitWarning`; a prismatic joint
+    has no such default (its stroke is a design choice), so it is refused.
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        joint: The prismatic joint.
+    """
+
+    def __init__(self, limb: str, path: Path | str | None, joint: str) -> None:
+        self.joint = joint
+        super().__init__(
+            limb,
+            path,
+            f"prismatic joint '{joint}' has no lower/upper limit, and a stroke cannot be assumed; "
+            f'write its stroke in metres in the URDF: <limit lower="0.4" upper="1.6" effort="1000" '
+            'velocity="1" /> inside <joint name="' + joint + '">',
+        )
 
 
 class DHMismatchError(URDFError):
@@ -513,6 +537,40 @@ class MissingMeshWarning(PkmtolWarning):
         super().__init__(
             f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
             "(results are not affected); fix the filename or put the mesh next to the URDF"
+        )
+
+
+class MissingLimitWarning(PkmtolWarning):
+    """A revolute or continuous URDF joint has no ``lower``/``upper`` limit: ±π is assumed.
+
+    CAD exports often write ``<limit effort=... velocity=.../>`` without a range, which urdfdom
+    reads as [0, 0] (a joint that cannot move, so every task point is unreachable). pkmtol reads
+    the missing side as −π or +π instead; a continuous joint is read as revolute over [−π, π].
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        joint: The joint.
+        lower: The lower limit used [rad].
+        upper: The upper limit used [rad].
+    """
+
+    def __init__(
+        self, limb: str, path: Path | str | None, joint: str, lower: float, upper: float, continuous: bool
+    ) -> None:
+        self.limb, self.joint, self.lower, self.upper = limb, joint, lower, upper
+        self.path = None if path is None else Path(path)
+        where = f" ({self.path})" if self.path is not None else ""
+        what = (
+            "is continuous; it is read as revolute over"
+            if continuous
+            else "has no lower/upper limit; assumed"
+        )
+        super().__init__(
+            f"limb '{limb}'{where}: joint '{joint}' {what} [{lower:.6g}, {upper:.6g}] rad "
+            f"([{math.degrees(lower):.6g}, {math.degrees(upper):.6g}] deg); to set its range, write "
+            f'type="revolute" and <limit lower="..." upper="..." effort="..." velocity="..." /> (rad) '
+            "in the URDF"
         )
 
 
