@@ -6,8 +6,9 @@ as a joint that does not move, ignores ``<mimic>`` and reports most other faults
 names the joint or link; :func:`fill_missing_limits` reads a revolute or continuous joint
 without ``lower``/``upper`` (urdfdom: [0, 0]) as ±π with a
 :class:`~pkmtol.exceptions.MissingLimitWarning` and refuses such a prismatic joint
-(:class:`~pkmtol.exceptions.MissingLimitError`); :func:`resolve_meshes` finds the mesh files the visuals name and drops
-(with a :class:`~pkmtol.exceptions.MissingMeshWarning`) the visuals whose mesh does not exist.
+(:class:`~pkmtol.exceptions.MissingLimitError`); :func:`resolve_meshes` finds the mesh files
+the visuals name and drops (with a :class:`~pkmtol.exceptions.MissingMeshWarning`) the visuals
+whose mesh does not exist.
 """
 
 from __future__ import annotations
