@@ -215,6 +215,15 @@ def _missing_mesh(tmp: Path) -> Any:
         return load_mechanism(folder)
 
 
+def _home_of(run: Callable[[Path], Any]) -> Callable[[Path], Any]:
+    """The mechanism ``run`` loads, then its home pose solved (as every command but ``check`` does)."""
+
+    def go(tmp: Path) -> Any:
+        return ClosedChain(run(tmp)).home()
+
+    return go
+
+
 def _warned(category: type[Warning], run: Callable[[Path], Any]) -> Callable[[Path], Any]:
     """``run`` with ``category`` warnings raised as errors (so the catalogue can catch the first)."""
 
@@ -346,6 +355,8 @@ CASES: list[Case] = [
     Case("Limbs", "a number among the actuated joints", toml('actuated = ["limb1_p3"]', "actuated = [3]"), MF, ("limbs[0].actuated", "list of strings")),
     Case("Limbs", "an actuated joint that is not in the limb", toml('actuated = ["limb1_p3"]', 'actuated = ["limb1_p9"]'), E.UnknownJointError, ("limb 'limb1'", "limb1_p9", "limb1_p3"), {"limb": "limb1", "joint": "limb1_p9"}),
     Case("Limbs", "two actuated joints in one limb", toml('actuated = ["limb1_p3"]', 'actuated = ["limb1_p3", "limb1_u1"]'), UE, ("limb 'limb1'", "2 actuated joints")),
+    Case("Limbs", "an actuator removed: too few for the mobility (`pkmtol check` exits 1 with it)", _home_of(toml('actuated = ["limb3_p3"]', "actuated = []")), E.MobilityError, ("too few actuators", "needs 3 actuated joints, 2 given")),
+    Case("Limbs", "an actuator too many", _home_of(toml('actuated = []', 'actuated = ["limb4_p3"]')), E.MobilityError, ("too many actuators", "make 1 of them passive")),
     Case("Limbs", "platform frames apart at home", toml("home = [0.0, 0.0, 0.75]", "home = [0.0, 0.0, 0.95]"), E.PlatformMismatchError, ("limb 'limb4'",), {"limb": "limb4"}),
     # ---- D–H tables
     Case("D–H tables", "a table that disagrees with the URDF (a_4 of limb 4 + 0.2 m)", toml(L4_LAST, L4_LAST.replace("[0.0, 0.0, 0.0, 0.0],", "[0.0, 0.0, 0.2, 0.0],")), E.DHMismatchError, ("limb 'limb4'", "limb4_platform_attach", "0.2 m", "python scripts/dh_to_urdf.py"), {"limb": "limb4", "joint": "limb4_platform_attach", "what": "origin"}),
