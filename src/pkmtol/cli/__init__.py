@@ -14,15 +14,17 @@ registers its arguments and sets ``run=`` to a function ``(args) -> int``, and l
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TextIO
 
 from pkmtol import __version__
 from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
 from pkmtol.cli.common import EXIT_ERROR
 from pkmtol.exceptions import PkmtolError, PkmtolWarning
+from pkmtol.present.terminal import FittedStream
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
 SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep, new)
@@ -38,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit code: 0 on success, 1 if a check found problems, 2 on a pkmtol error.
 
     """
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), _fitted_stdout():
         warnings.simplefilter("always", PkmtolWarning)
         warnings.showwarning = _show_warning
         try:
@@ -56,6 +58,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BrokenPipeError:  # output piped into `head` and closed early
             sys.stderr.close()
             return 0
+
+
+@contextlib.contextmanager
+def _fitted_stdout() -> Iterator[None]:
+    """Print through :class:`~pkmtol.present.terminal.FittedStream`: tables and lines fit the terminal."""
+    stdout = sys.stdout
+    sys.stdout = FittedStream(stdout)  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        try:
+            sys.stdout.flush()
+        finally:
+            sys.stdout = stdout
 
 
 def run(argv: Sequence[str] | None = None) -> int:
