@@ -119,3 +119,18 @@ def test_the_stream_fits_what_is_printed_in_pieces():
     stream.write("tail without newline")
     stream.flush()
     assert sink.getvalue() == fit_text(text, 100) + "\n" + "tail without newline"
+
+
+def test_a_panel_repeats_as_many_leading_columns_as_tell_the_rows_apart():
+    header = ["errors", "model", *(f"statistic {k} [µm]" for k in range(8))]
+    rows = [header] + [
+        [e, m, *(f"{k}.00" for k in range(8))] for e in ("gaussian", "uniform") for m in ("a", "b")
+    ]
+    panels = fit_text(text_table(rows), 100).split("\n\n")
+    assert len(panels) == 2
+    for panel in panels:
+        lines = panel.splitlines()
+        assert lines[0].split()[:2] == ["errors", "model"]
+        assert [tuple(line.split()[:2]) for line in lines[2:]] == [
+            (e, m) for e in ("gaussian", "uniform") for m in "ab"
+        ]

@@ -5,8 +5,9 @@ dashes, aligned rows) between lines of prose. :func:`fit_text` takes such text a
 with every line at most ``width`` columns:
 
 * a table wider than ``width`` is split into panels of whole columns, one under the other; each
-  panel repeats the table's first column (the row's name; and the second when the first only
-  numbers the rows), so every row stays on one line and every number keeps its header; a single
+  panel repeats the table's first column (the row's name; and the next ones while the first
+  only numbers the rows or does not tell them apart), so every row stays on one line and every
+  number keeps its header; a single
   cell too wide even so is wrapped inside its column;
 * any other long line is wrapped at spaces, its continuation lines indented two columns more
   than the line itself.
@@ -117,6 +118,14 @@ def _fit_table(block: list[str], width: int) -> list[str]:
     widths = [b - a for a, b in spans]
     # the row's name: the first column, and the second too when the first only numbers the rows
     keys = [0, 1] if len(spans) > 2 and all(row[0].isdigit() for row in cells[1:]) else [0]
+    # and more columns while they do not yet tell the rows apart (errors + model, say)
+    while (
+        len(keys) < len(spans) - 1
+        and len({tuple(row[c] for c in keys) for row in cells[1:]}) < len(cells) - 1
+    ):
+        if sum(widths[c] for c in [*keys, len(keys)]) + GAP * len(keys) > width // 2:
+            break
+        keys.append(len(keys))
     if sum(widths[c] for c in keys) + GAP * (len(keys) - 1) > width // 2:
         keys = [0]
         widths[0] = min(widths[0], width // 2)  # a long name is wrapped, half the width at most
