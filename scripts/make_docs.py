@@ -75,7 +75,7 @@ def run(command: str, cwd: Path = ROOT, columns: int = 100) -> tuple[str, float,
     )
     env = dict(
         os.environ,
-        COLUMNS="100",
+        COLUMNS=str(columns),
         PYTHONPATH=os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
     )
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
