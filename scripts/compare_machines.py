@@ -1,11 +1,13 @@
-"""Compare robots: parameter counts and classes, worst point, FOSM tolerances at one β (Markdown).
+"""Compare robots: parameter counts and classes, design point, FOSM tolerances at one β (Markdown).
 
-For each robot folder and each parameter set (dh, urdf): the error model over the task-space
-grid, the classification, the most error-sensitive grid point (largest analytic σ[Δλ] with
-η_c ~ N(0, 1), as ``pkmtol errors`` and ``pkmtol allocate``) and the FOSM tolerances
-``σ_i = Δλ*/(√n ω_i β)`` there (the paper's Eq. 20, no sampling: deterministic). Prints Markdown:
-a table of counts, a table of tolerances (min / median / max per unit), and with ``--appendix``
-every allocated parameter.
+For each robot folder and each parameter set (dh, urdf) this runs :func:`pkmtol.allocate`, the same
+function as ``pkmtol allocate``, with ``method="fosm"`` (the paper's Eq. 20, Table III) at the
+design β: the classification, the most error-sensitive grid point (largest analytic σ[Δλ], the
+first in grid order on a tie) and the tolerances there. A parameter with no effect at the design
+point is toleranced from its own most sensitive grid pose, as ``allocate`` does (marked ``*pose``;
+none is left free). The samples only feed ``allocate``'s verification, which is not printed, so the
+output is deterministic. Prints Markdown: a table of counts, a table of tolerances (min / median /
+max per unit), and with ``--appendix`` every allocated parameter.
 
 Usage:
     python scripts/compare_machines.py robots/r2rps_ups robots/tricept robots/exechon robots/sprint_z3
@@ -21,13 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.design.fosm import fosm_tolerances
+from pkmtol import DesignOptions, DesignResult, allocate, load_mechanism
 from pkmtol.error_model.sweep import CLASSES
-from pkmtol.error_model.table import ErrorTable, error_table
-from pkmtol.kinematics.closed_chain import ClosedChain
-from pkmtol.model.loader import load_mechanism
 
 SCALE = {"m": (1e6, "µm"), "rad": (1e6, "µrad")}
+#: allocate's sampling only feeds its verification, which this script does not print
+QUICK = {"samples": 200, "exact_samples": 0, "verification_poses": 20, "claim_poses": 20}
 
 
 def md_table(rows: list[list[str]]) -> str:
@@ -36,23 +37,32 @@ def md_table(rows: list[list[str]]) -> str:
     return "\n".join(out)
 
 
-def tolerances(t: ErrorTable, target_m: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Allocated parameter indices and their FOSM tolerances at ``beta`` (SI; inf = free)."""
-    unc = np.array([i for i, c in enumerate(t.classes) if c == "uncompensatable"], dtype=int)
-    if unc.size == 0:
-        return unc, np.zeros(0)
-    return unc, fosm_tolerances(t.sensitivity[unc], target_m, np.array([beta]))[:, 0]
+def design(mech, kind: str, beta: float) -> DesignResult:
+    """``pkmtol allocate`` of ``mech`` with parameter set ``kind``, FOSM, at design β ``beta``."""
+    betas = tuple(sorted({*mech.betas, beta}))
+    opt = DesignOptions(parameter_set=kind, method="fosm", betas=betas, design_beta=beta, **QUICK)
+    return allocate(mech, opt)
+
+
+def tolerances(r: DesignResult) -> tuple[np.ndarray, np.ndarray]:
+    """Allocated parameter indices and their FOSM tolerances at the design β (SI)."""
+    col = r.betas.index(r.design_beta)
+    return r.uncompensatable, r.tolerances[r.uncompensatable, col]
 
 
 def spread(values: np.ndarray, unit: str) -> str:
-    """``min / median / max`` of the finite values in display units, and the count of free ones."""
+    """``min / median / max`` of the values in display units, and their count."""
     f, name = SCALE[unit]
-    fin = values[np.isfinite(values)] * f
-    free = int(np.sum(~np.isfinite(values)))
-    if fin.size == 0:
-        return "–" if not free else f"all {free} free"
-    s = f"{fin.min():.3g} / {np.median(fin):.3g} / {fin.max():.3g} {name} ({fin.size})"
-    return s + (f", {free} free" if free else "")
+    if values.size == 0:
+        return "–"
+    v = values * f
+    return f"{v.min():.3g} / {np.median(v):.3g} / {v.max():.3g} {name} ({v.size})"
+
+
+def fallback(r: DesignResult, i: int) -> str:
+    """`` *pose`` when parameter ``i`` is toleranced from its own most sensitive grid pose."""
+    fb = r.fallback_pose
+    return f" *{int(fb[i])}" if fb is not None and fb[i] >= 0 else ""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,9 +76,8 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     for folder in args.robots:
         mech = load_mechanism(folder)
-        chain = ClosedChain(mech)
         kinds = ["dh", "urdf"] if all(lb.dh is not None for lb in mech.limbs) else ["urdf"]
-        results.append((mech, {k: error_table(mech, k, chain) for k in kinds}))
+        results.append((mech, {k: design(mech, k, args.beta) for k in kinds}))
 
     beta = args.beta
     rows = [
@@ -104,16 +113,17 @@ def main(argv: list[str] | None = None) -> int:
             "machine",
             "set",
             "Δλ*",
-            "worst point P [mm]",
-            "allocated n",
+            "design point P [mm]",
+            "allocated n (from their own pose)",
             "length tolerances min / median / max (count)",
             "angle tolerances min / median / max (count)",
         ]
     ]
     for mech, tables in results:
         for k, t in tables.items():
-            unc, tol = tolerances(t, mech.target_m, beta)
+            unc, tol = tolerances(t)
             units = np.array([t.pset.units[i] for i in unc])
+            own = sum(bool(fallback(t, i)) for i in unc)
             wp = np.round(t.worst_point_m * 1e3, 1) + 0.0  # no '-0.0'
             rows.append(
                 [
@@ -121,28 +131,28 @@ def main(argv: list[str] | None = None) -> int:
                     k,
                     f"{mech.target_m * 1e6:g} µm",
                     f"({wp[0]:.1f}, {wp[1]:.1f}, {wp[2]:.1f})",
-                    str(int(np.sum(np.isfinite(tol)))),
+                    f"{unc.size} ({own})",
                     spread(tol[units == "m"], "m"),
                     spread(tol[units == "rad"], "rad"),
                 ]
             )
-    print(f"## Worst point and FOSM tolerances at β = {beta:g}\n\n{md_table(rows)}\n")
+    print(f"## Design point and FOSM tolerances at β = {beta:g}\n\n{md_table(rows)}\n")
 
     if args.appendix:
         print(f"## Appendix: every allocated parameter (β = {beta:g})\n")
         for mech, tables in results:
             for k, t in tables.items():
-                unc, tol = tolerances(t, mech.target_m, beta)
-                rows = [["parameter", "sensitivity ω", "tolerance ±σ"]]
-                for i, s in zip(unc, tol, strict=True):
+                unc, tol = tolerances(t)
+                rows = [["parameter (*own pose)", "sensitivity ω", "tolerance ±σ"]]
+                for i, sig in zip(unc, tol, strict=True):
                     unit = t.pset.units[i]
                     f, name = SCALE[unit]
                     w = "µm/µm" if unit == "m" else "µm/µrad"
                     rows.append(
                         [
-                            t.pset.names[i],
+                            t.pset.names[i] + fallback(t, i),
                             f"{t.sensitivity[i]:.4f} {w}",
-                            "free (ω = 0)" if not np.isfinite(s) else f"{s * f:.2f} {name}",
+                            f"{sig * f:.2f} {name}",
                         ]
                     )
                 print(f"### {mech.name}, {k} set\n\n{md_table(rows)}\n")

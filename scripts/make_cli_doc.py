@@ -64,8 +64,8 @@ EXAMPLES = {
         "pkmtol allocate robots/r2rps_ups --method cost --html out/scene.html",
     ],
     "new": [
-        "pkmtol new tricept --base-radius 0.55 --out robots/my_tricept",
-        "pkmtol new sprint_z3 --rod-length 0.45 --slider-stroke 0 0.6 --out robots/my_z3",
+        "pkmtol new tricept --base-radius 550mm --out robots/my_tricept",
+        "pkmtol new sprint_z3 --rod-length 450mm --slider-stroke 0mm 600mm --out robots/my_z3",
     ],
     "show": [
         "pkmtol show robots/r2rps_ups",

@@ -259,6 +259,28 @@ def _missing_mesh(tmp: Path) -> Any:
         return load_mechanism(folder)
 
 
+def _home_of(run: Callable[[Path], Any]) -> Callable[[Path], Any]:
+    """The mechanism ``run`` loads, then its home pose solved (as every command but ``check`` does)."""
+
+    def go(tmp: Path) -> Any:
+        return ClosedChain(run(tmp)).home()
+
+    return go
+
+
+def _warned(category: type[Warning], run: Callable[[Path], Any]) -> Callable[[Path], Any]:
+    """``run`` with ``category`` warnings raised as errors (so the catalogue can catch the first)."""
+
+    def go(tmp: Path) -> Any:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", category)
+            return run(tmp)
+
+    return go
+
+
 def jit_switch_misspelt(tmp: Path) -> Any:
     """The compiled kernels' switch set to a value that is neither on nor off (read on first solve)."""
     before = os.environ.get(acceleration.ENVIRONMENT)
@@ -276,6 +298,7 @@ L4_LAST = "  [0.0, 0.0, 0.0, 0.0],\n]\nend = [0.0, 90.0]\nlimits = [[-90.0, 90.0
 L4_U1 = '<joint name="limb4_u1" type="revolute">'
 #: Limb 4's first link and the start of its visual (a sphere).
 L4_L1_VISUAL = '<link name="limb4_l1">\n    <visual>\n      <geometry>\n        <sphere radius="0.03" />'
+L4_U1_LIMIT = '<child link="limb4_l1" />\n    <axis xyz="0 0 1" />\n    <limit lower="-1.5707963267948966" upper="1.5707963267948966"'
 MF, UE, IA, UK = E.MechanismFormatError, E.URDFError, E.InvalidArgumentError, E.UnknownKeyError
 
 
@@ -378,6 +401,8 @@ CASES: list[Case] = [
     Case("Limbs", "a number among the actuated joints", toml('actuated = ["limb1_p3"]', "actuated = [3]"), MF, ("limbs[0].actuated", "list of strings")),
     Case("Limbs", "an actuated joint that is not in the limb", toml('actuated = ["limb1_p3"]', 'actuated = ["limb1_p9"]'), E.UnknownJointError, ("limb 'limb1'", "limb1_p9", "limb1_p3"), {"limb": "limb1", "joint": "limb1_p9"}),
     Case("Limbs", "two actuated joints in one limb", toml('actuated = ["limb1_p3"]', 'actuated = ["limb1_p3", "limb1_u1"]'), UE, ("limb 'limb1'", "2 actuated joints")),
+    Case("Limbs", "an actuator removed: too few for the mobility (`pkmtol check` exits 1 with it)", _home_of(toml('actuated = ["limb3_p3"]', "actuated = []")), E.MobilityError, ("too few actuators", "needs 3 actuated joints, 2 given")),
+    Case("Limbs", "an actuator too many", _home_of(toml('actuated = []', 'actuated = ["limb4_p3"]')), E.MobilityError, ("too many actuators", "make 1 of them passive")),
     Case("Limbs", "platform frames apart at home", toml("home = [0.0, 0.0, 0.75]", "home = [0.0, 0.0, 0.95]"), E.PlatformMismatchError, ("limb 'limb4'",), {"limb": "limb4"}),
     # ---- D–H tables
     Case("D–H tables", "a table that disagrees with the URDF (a_4 of limb 4 + 0.2 m)", toml(L4_LAST, L4_LAST.replace("[0.0, 0.0, 0.0, 0.0],", "[0.0, 0.0, 0.2, 0.0],")), E.DHMismatchError, ("limb 'limb4'", "limb4_platform_attach", "0.2 m", "python scripts/dh_to_urdf.py"), {"limb": "limb4", "joint": "limb4_platform_attach", "what": "origin"}),
@@ -395,10 +420,12 @@ CASES: list[Case] = [
     Case("URDF", "a kinematic loop (a link that is the child of two joints)", urdf('<child link="limb4_l3" />', '<child link="limb4_l1" />'), UE, ("limb4_l1", "child of two joints", "kinematic loop")),
     Case("URDF", "a joint whose parent is its child", urdf('<child link="limb4_l1" />', '<child link="base" />'), UE, ("limb4_u1", "kinematic loop")),
     Case("URDF", "two joints with one name", urdf('<joint name="limb4_u2" type="revolute">', '<joint name="limb4_u1" type="revolute">'), UE, ("limb4_u1", "defined twice")),
-    Case("URDF", "a revolute joint without `<limit>`", urdf('<limit lower="-1.5707963267948966" upper="1.5707963267948966" effort="1000" velocity="1" />\n  </joint>\n  <joint name="limb4_u2"', '</joint>\n  <joint name="limb4_u2"'), UE, ("limb4_u1", "needs <limit")),
+    Case("URDF", "a revolute joint without `<limit>` (a warning: ±π assumed)", _warned(E.MissingLimitWarning, urdf('<limit lower="-1.5707963267948966" upper="1.5707963267948966" effort="1000" velocity="1" />\n  </joint>\n  <joint name="limb4_u2"', '</joint>\n  <joint name="limb4_u2"')), E.MissingLimitWarning, ("limb4_u1", "no lower/upper limit")),
     Case("URDF", "URDF limits reversed", urdf('lower="0.3" upper="1.6"', 'lower="1.6" upper="0.3"'), UE, ("limb4_p3", "reversed")),
     Case("URDF", "an unknown joint type", urdf('type="prismatic"', 'type="slider"'), UE, ("limb4_p3", "unknown type 'slider'")),
-    Case("URDF", "a continuous joint", urdf(L4_U1, '<joint name="limb4_u1" type="continuous">'), UE, ("limb 'limb4'", "limb4_u1", "revolute or prismatic")),
+    Case("URDF", "a continuous joint (a warning: read as revolute over ±π)", _warned(E.MissingLimitWarning, urdf(L4_U1, '<joint name="limb4_u1" type="continuous">', "limb4.urdf")), E.MissingLimitWarning, ("limb 'limb4'", "limb4_u1", "is continuous")),
+    Case("URDF", "a revolute `<limit>` without lower/upper (a warning: ±π assumed)", _warned(E.MissingLimitWarning, urdf(L4_U1_LIMIT, L4_U1_LIMIT.split("<limit")[0] + "<limit")), E.MissingLimitWarning, ("limb 'limb4'", "limb4_u1", "assumed [-3.14159, 3.14159] rad")),
+    Case("URDF", "a prismatic `<limit>` without lower/upper", urdf('<limit lower="0.3" upper="1.6"', "<limit"), E.MissingLimitError, ("limb 'limb4'", "limb4_p3", "stroke"), {"limb": "limb4", "joint": "limb4_p3"}),
     Case("URDF", "a parent link not in the file", urdf('<parent link="limb4_l1" />', '<parent link="limb4_lx" />'), UE, ("limb4_lx", "is not a <link>")),
     Case("URDF", "a limit without `effort` (urdfdom's reason captured)", urdf('lower="0.3" upper="1.6" effort="1000"', 'lower="0.3" upper="1.6"'), UE, ("limb 'limb4'", "limit has no effort")),
     Case("URDF", "malformed XML", urdf("</robot>", "</robo>"), UE, ("limb 'limb4'", "malformed XML")),
@@ -469,10 +496,11 @@ CASES: list[Case] = [
     Case("Command line", "`--out` that is a file", cli("allocate", "{robot}", "--out", "{robot}/mechanism.toml", *SMALL), E.OutputError, ("mechanism.toml",)),
     Case("Command line", "`--out` another run is writing into", locked_out, E.OutputLockedError, ("busy", "is writing a run into this folder")),
     Case("Command line", "`errors --json` into a folder that does not exist", cli("errors", "{robot}", "--json", "{tmp}/no/e.json"), E.OutputError, ("e.json", "does not exist")),
-    Case("Command line", "`new` with a rod shorter than the radii allow", cli("new", "sprint_z3", "--rod-length", "0.05", "--out", "{tmp}/s"), IA, ("--rod-length 0.05", "must be longer"), {"argument": "--rod-length"}),
+    Case("Command line", "`new` with a bare number (its unit missing)", cli("new", "tricept", "--base-radius", "550", "--out", "{tmp}/t"), IA, ("--base-radius 550", "has no unit"), {"argument": "--base-radius"}),
+    Case("Command line", "`new` with a rod shorter than the radii allow", cli("new", "sprint_z3", "--rod-length", "50mm", "--out", "{tmp}/s"), IA, ("--rod-length 0.05", "must be longer"), {"argument": "--rod-length"}),
     Case("Command line", "`new` into a folder that is not empty", new_in_taken, E.OutputError, ("taken", "not an empty folder")),
     Case("Command line", "`PKMTOL_JIT=maybe` in the environment", jit_switch_misspelt, IA, ("PKMTOL_JIT = 'maybe'", "set it to 0"), {"argument": "PKMTOL_JIT"}),
-    Case("Command line", "`new` with a task space the robot cannot reach", cli("new", "tricept", "--task-radius", "1.5", "--out", "{tmp}/big", "--no-progress"), E.RobotCheckError, ("tricept", "117 of 147 task-space points are not reachable"), {"family": "tricept"}),
+    Case("Command line", "`new` with a task space the robot cannot reach", cli("new", "tricept", "--task-radius", "1.5m", "--out", "{tmp}/big", "--no-progress"), E.RobotCheckError, ("tricept", "117 of 147 task-space points are not reachable"), {"family": "tricept"}),
     Case("One tree with loops", "a urdfdom `<constraint>` of type `revolute`", _epr_with_constraint("revolute"), E.ClosedLoopError, ("rod2_cut", "revolute", "cut the loop at a fixed"), {"culprit": "rod2_cut"}),
     Case("One tree with loops", "a task frame that is not in the tree", _tree_task_frame_missing, E.ClosedLoopError, ("tcp", "no frame 'tcp'"), {"culprit": "tcp"}),
     Case("One tree with loops", "a constraint model that is not a frame or point anchor", _tree_unknown_constraint, E.ClosedLoopError, ("constraint 1", "FrameAnchorConstraintModel"), {"culprit": "constraint 1"}),

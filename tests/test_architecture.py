@@ -17,7 +17,7 @@ PACKAGE = SRC / "pkmtol"
 #: The stages, bottom to top: a module may import its own stage and the ones below it.
 STAGES = ("model", "kinematics", "error_model", "calibration", "design", "present")
 #: Top-level modules every stage may use (they import nothing of the stages).
-FOUNDATION = ("exceptions", "units", "files", "statistics", "values", "executor")
+FOUNDATION = ("exceptions", "warning_types", "units", "files", "statistics", "values", "executor")
 MAX_LINES = 600
 
 

@@ -1,8 +1,9 @@
 """The documentation runs: every ```python block of docs/*.md and README.md is executed (the blocks
 of one page in order, in one namespace, from the repository root), and a ```text block that follows
 a python block directly (only blank lines between) must be exactly what that block prints. The
-generated references (docs/cli.md, docs/api.md) are in sync with the code, and relative links
-between the pages point to files that exist."""
+generated references (docs/cli.md, docs/api.md) are in sync with the code, the generated blocks of
+the pages (scripts/make_docs.py) are current, and relative links between the pages point to files
+that exist."""
 
 from __future__ import annotations
 
@@ -93,3 +94,53 @@ def test_relative_links_exist(page):
         if "://" in target or target.startswith("mailto:"):
             continue
         assert (page.parent / target).exists(), f"{page.name}: broken link {target}"
+
+
+def make_docs():
+    import sys
+
+    spec = importlib.util.spec_from_file_location("make_docs", REPO / "scripts" / "make_docs.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["make_docs"] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_generated_blocks_are_current():
+    # every number in a generated block comes from its command; the block records the hash of
+    # that command's inputs (src/pkmtol, the robots, the scripts): changed inputs make it stale
+    assert make_docs().stale() == [], "rerun: python scripts/make_docs.py (the --only it names)"
+
+
+def test_every_generator_has_a_block_and_every_block_a_generator():
+    md = make_docs()
+    seen = {
+        md.generator_of(m["name"]).name
+        for page in md.pages()
+        for m in md.blocks(page.read_text(encoding="utf-8"))
+        if md.generator_of(m["name"]) is not None
+    }
+    assert seen == set(md.GENERATORS)
+
+
+def test_a_stale_block_is_detected(tmp_path, monkeypatch):
+    md = make_docs()
+    page = tmp_path / "page.md"
+    page.write_text("x\n<!-- generated: tutorial-check inputs=0000000000000000 -->\nold\n<!-- end -->\n")
+    monkeypatch.setattr(md, "pages", lambda: [page])
+    want = "page.md: tutorial-check (stale: python scripts/make_docs.py --only tutorial-check)"
+    assert md.stale() == [want]
+
+
+@pytest.mark.parametrize("name", ["tutorial-check", "tutorial-mobility", "tutorial-errors"])
+def test_cheap_blocks_regenerate_verbatim(name):
+    md = make_docs()
+    gen = md.GENERATORS[name]
+    assert gen.cheap
+    made = md.generate(gen)
+    on_pages = {
+        m["name"]: m["body"] for page in md.pages() for m in md.blocks(page.read_text(encoding="utf-8"))
+    }
+    for block, text in made.items():
+        assert on_pages[block] == text, f"{block}: rerun python scripts/make_docs.py --only {name}"

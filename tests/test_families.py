@@ -105,7 +105,7 @@ def test_a_variant_is_written_checked_and_loads(tmp_path):
     assert mech.name == "wide"
     # the U joints moved out to 0.55 m: leg 1's first D–H row carries it
     assert mech.limbs[0].dh.links[0, 2] == pytest.approx(0.55)
-    assert "--base-radius 0.55" in made.command
+    assert "--base-radius 550mm" in made.command  # as `pkmtol new` takes it: with its unit
     assert sorted(p.name for p in tmp_path.iterdir()) == ["wide"]  # no temporary folder left
 
 
@@ -133,6 +133,22 @@ def test_bad_dimensions_name_the_option(tmp_path, family, dims, option, needle):
         new_robot(family, tmp_path / "x", **dims)
     assert info.value.argument == option
     assert list(tmp_path.iterdir()) == []
+
+
+def test_pkmtol_new_takes_lengths_with_units_and_refuses_bare_numbers(tmp_path, capsys):
+    out = tmp_path / "wide"
+    argv = ["new", "tricept", "--base-radius", "550mm", "--leg-stroke", "0.6m", "1400mm", "--out", str(out)]
+    assert main([*argv, "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "--base-radius 550mm" in printed and "--leg-stroke 600mm 1400mm" in printed
+    assert load_mechanism(out).limbs[0].dh.links[0, 2] == pytest.approx(0.55)
+    # 550 meant mm: refused for its missing unit, not read as 550 m (then a leg-stroke error)
+    assert main(["new", "tricept", "--base-radius", "550", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pkmtol: error: --base-radius 550: '550' has no unit") and "550 mm" in err
+    assert main(["new", "tricept", "--task-z", "1.1m", "1300", "--out", str(tmp_path / "x")]) == 2
+    assert "--task-z 1.1m 1300: '1300' has no unit" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
 
 
 def test_an_existing_folder_is_not_overwritten(tmp_path, capsys):

@@ -378,6 +378,15 @@ def test_static_page_renders_in_headless_chromium(result, tmp_path):
     # the camera frames the mechanism: its orange legs lie near the middle of the picture
     ys, xs = np.nonzero(_orange(full))
     assert abs(xs.mean() / 1200 - 0.5) < 0.12 and abs(ys.mean() / 900 - 0.5) < 0.12
+    # the mechanism fills at least a third of the view (robot layer alone: every pixel that is
+    # not the white background, below the controls bar and apart from the legend's box)
+    page = export_html(result, tmp_path / "robot.html", SceneOptions(layers=("robot",))).path
+    robot = _pixels(screenshot(page, tmp_path / "robot.png", size=(1200, 900)))
+    drawn = np.any(np.abs(robot - 255) > 30, axis=-1)
+    drawn[:30] = False  # the controls bar
+    drawn[820:, :420] = False  # the legend (2 lines without the error layers)
+    ys, xs = np.nonzero(drawn)
+    assert max((xs.max() - xs.min()) / 1200, (ys.max() - ys.min()) / 900) >= 1 / 3
     # and the whole mechanism is in view: no orange on the picture's border
     border = _orange(full).copy()
     border[10:-10, 10:-10] = False
@@ -436,19 +445,66 @@ def test_camera_frames_the_mechanism_and_the_task_space(result, recorded):
     ]
     d = summary.camera_m
     assert cam[-1]["value"] == pytest.approx([d[0], d[2], -d[1]])
-    assert np.linalg.norm(d) == pytest.approx(camera_distance(b.radius))
-    # every corner of the box is inside the camera's view cone (half-angle: half the vertical FOV)
-    corners = np.array(
-        [
-            [x, y, z]
-            for x in (b.low[0], b.high[0])
-            for y in (b.low[1], b.high[1])
-            for z in (b.low[2], b.high[2])
-        ]
-    )
-    rays = corners - (b.centre + d)
-    cos = rays @ (-d) / (np.linalg.norm(rays, axis=1) * np.linalg.norm(d))
-    assert np.degrees(np.arccos(cos)).max() < CAMERA_FOV_DEG / 2
+    # closer than the sphere around the box (the mechanism used to be small beside the spheres)
+    assert np.linalg.norm(d) < 0.8 * camera_distance(b.radius)
+    # every joint and grid point is in the image: within half the vertical FOV across and up
+    f = -d / np.linalg.norm(d)
+    right = np.cross(f, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, f)
+    rays = pts - (b.centre + d)
+    depth = rays @ f
+    half = np.tan(np.radians(CAMERA_FOV_DEG / 2))
+    assert np.all(depth > 0)
+    assert np.max(np.abs(rays @ right) / depth) < half and np.max(np.abs(rays @ up) / depth) < half
+
+
+def _in_scene(commands, path: str) -> np.ndarray:
+    """The transform of ``path`` in meshcat's scene: the product of its own and its ancestors'."""
+    every = _transforms(commands, "/meshcat")
+    parts = path.split("/")
+    out = np.eye(4)
+    for k in range(2, len(parts) + 1):
+        out = out @ every.get("/".join(parts[:k]), np.eye(4))
+    return out
+
+
+def _rod_ends(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ends of meshcat's unit cylinder (axis y, centred) under ``matrix``."""
+    return (matrix @ [0.0, -0.5, 0.0, 1.0])[:3], (matrix @ [0.0, 0.5, 0.0, 1.0])[:3]
+
+
+def test_every_limb_is_drawn_link_to_link_from_its_base_joint_to_the_platform(result, recorded):
+    import pinocchio as pin
+
+    summary, commands = recorded
+    offset = _transforms(commands, f"/meshcat/{ROOT}")[f"/meshcat/{ROOT}"][:3, 3]
+    pose = result.grid.poses[result.worst_index]
+    platform_ends = []
+    for i, limb in enumerate(result.mechanism.limbs):
+        prefix = f"/meshcat/{ROOT}/robot/{limb.name}/links/"
+        rods = _transforms(commands, prefix)
+        assert len(rods) == len(summary.links_m[i]) >= 1
+        ends = [_rod_ends(_in_scene(commands, f"{prefix}{k}")) for k in range(len(rods))]
+        data = limb.model.createData()
+        pin.framesForwardKinematics(limb.model, data, np.asarray(pose.q[i], dtype=float))
+        base = data.oMi[1].translation + offset
+        platform = data.oMf[limb.platform_frame].translation + offset
+        # the first rod starts at the base joint, each next one where an earlier one ends, the
+        # last ends at the platform frame: no leg stops short of its joints
+        np.testing.assert_allclose(ends[0][0], base, atol=1e-9)
+        for k in range(1, len(ends)):
+            gaps = [np.linalg.norm(ends[k][0] - ends[j][1]) for j in range(k)]
+            assert min(gaps) < 1e-9, (limb.name, k)
+        np.testing.assert_allclose(ends[-1][1], platform, atol=1e-9)
+        np.testing.assert_allclose(np.array(ends), summary.links_m[i] + offset, atol=1e-9)
+        platform_ends.append(ends[-1][1])
+    # the limbs meet at one platform frame (closed to the solver's tolerance)
+    assert np.ptp(np.array(platform_ends), axis=0).max() < 1e-9
+    # the platform is drawn once, see-through: the other limbs' copies are hidden
+    hidden = {c["path"] for c in commands if c["type"] == "set_property" and c["property"] == "visible"}
+    for limb in result.mechanism.limbs[1:]:
+        assert any(p.startswith(f"/meshcat/{ROOT}/robot/{limb.name}/visuals/") for p in hidden)
 
 
 def test_ground_grid_lies_under_the_base(result, recorded):

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pkmtol.warning_types import MissingLimitWarning, MissingMeshWarning, PkmtolWarning  # noqa: F401 - re-exported
+
 
 class PkmtolError(Exception):
     """Base class of every error raised by pkmtol on bad input or an impossible request.
@@ -86,6 +88,29 @@ class URDFError(PkmtolError):
         self.path = None if path is None else Path(path)
         where = f" ({self.path})" if self.path is not None else ""
         super().__init__(f"limb '{limb}'{where}: {problem}")
+
+
+class MissingLimitError(URDFError):
+    """A prismatic joint of a URDF has no ``lower``/``upper`` limit, so its stroke is unknown.
+
+    A revolute joint without limits gets ±π and a :class:`MissingLimitWarning`; a prismatic joint
+    has no such default (its stroke is a design choice), so it is refused.
+
+    Attributes:
+        limb: Name of the limb.
+        path: The URDF file.
+        joint: The prismatic joint.
+    """
+
+    def __init__(self, limb: str, path: Path | str | None, joint: str) -> None:
+        self.joint = joint
+        super().__init__(
+            limb,
+            path,
+            f"prismatic joint '{joint}' has no lower/upper limit, and a stroke cannot be assumed; "
+            f'write its stroke in metres in the URDF: <limit lower="0.4" upper="1.6" effort="1000" '
+            'velocity="1" /> inside <joint name="' + joint + '">',
+        )
 
 
 class DHMismatchError(URDFError):
@@ -485,35 +510,6 @@ class ViewerError(PkmtolError):
 
 class FiguresError(PkmtolError):
     """Figures cannot be made: matplotlib is missing (``pip install 'pkmtol[plots]'``)."""
-
-
-# --- warnings -----------------------------------------------------------------------------------
-
-
-class PkmtolWarning(UserWarning):
-    """Base class of pkmtol's warnings: the input is used, but something in it is dropped or odd."""
-
-
-class MissingMeshWarning(PkmtolWarning):
-    """A visual mesh a limb URDF names does not exist: that visual is left out of the 3D scene.
-
-    The accuracy results do not depend on visuals; the warning says which file is missing.
-
-    Attributes:
-        limb: Name of the limb.
-        path: The URDF file.
-        mesh: The mesh file name as the URDF gives it.
-    """
-
-    def __init__(self, limb: str, path: Path | str | None, mesh: str) -> None:
-        self.limb = limb
-        self.path = None if path is None else Path(path)
-        self.mesh = mesh
-        where = f" ({self.path})" if self.path is not None else ""
-        super().__init__(
-            f"limb '{limb}'{where}: mesh '{mesh}' not found; its visual is left out of the 3D scene "
-            "(results are not affected); fix the filename or put the mesh next to the URDF"
-        )
 
 
 # --- execution and studies ------------------------------------------------------------------------

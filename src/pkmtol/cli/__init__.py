@@ -14,16 +14,18 @@ registers its arguments and sets ``run=`` to a function ``(args) -> int``, and l
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TextIO
 
 from pkmtol import __version__, executor, files
 from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
 from pkmtol.cli.common import EXIT_ERROR, Interrupted, signals_as_interrupts
 from pkmtol.exceptions import PkmtolError, PkmtolWarning
+from pkmtol.present.terminal import FittedStream
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
 SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep, new)
@@ -40,7 +42,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     """
     written = files.commits()
-    with warnings.catch_warnings(), signals_as_interrupts():
+    with warnings.catch_warnings(), signals_as_interrupts(), _fitted_stdout():
         warnings.simplefilter("always", PkmtolWarning)
         warnings.showwarning = _show_warning
         try:
@@ -75,6 +77,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BrokenPipeError:  # output piped into `head` and closed early
             sys.stderr.close()
             return 0
+
+
+@contextlib.contextmanager
+def _fitted_stdout() -> Iterator[None]:
+    """Print through :class:`~pkmtol.present.terminal.FittedStream`: tables and lines fit the terminal."""
+    stdout = sys.stdout
+    sys.stdout = FittedStream(stdout)  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        try:
+            sys.stdout.flush()
+        finally:
+            sys.stdout = stdout
 
 
 def run(argv: Sequence[str] | None = None) -> int:

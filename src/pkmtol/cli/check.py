@@ -93,6 +93,11 @@ def format_check(report: CheckReport) -> list[str]:
         + ", ".join(f"{limb.name} {limb.constraint_count}" for limb in report.limbs)
     )
     out.append("")
+    if report.actuation:  # nothing was solved: the actuators do not determine the pose
+        out.append("task space: not solved (the actuation is wrong, see below)")
+        out.append("")
+        out.append("result: " + "; ".join(report.problems))
+        return out
     out.append(f"task space: {_describe_task_space(report)}")
     out.append(f"reachable: {report.n_reachable}/{len(report.points)} points")
     for p in report.unreachable[:MAX_LISTED]:

@@ -6,8 +6,11 @@ import argparse
 from pathlib import Path
 
 from pkmtol.cli.common import show_progress
+from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
 from pkmtol.kinematics.robot_folder import new_robot
 from pkmtol.model.families import FAMILIES, SUMMARY
+from pkmtol.model.robot_files import length_text as shown
+from pkmtol.units import parse_length
 
 
 def add(subparsers: argparse._SubParsersAction) -> None:
@@ -21,7 +24,9 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         "families with the dimensions given (the others keep the bundled robot's values; with no "
         "option the bundled robot is reproduced exactly). The D–H tables are derived from the "
         "joint axes, the URDFs generated from them, and the folder is only written if it loads "
-        "and passes `pkmtol check` (mobility, every task-space point reachable within the limits).",
+        "and passes `pkmtol check` (mobility, every task-space point reachable within the limits). "
+        "Every dimension is a length with its unit, as elsewhere in pkmtol (550mm, 0.55m, 550000um); "
+        "a bare number is refused.",
     )
     families = p.add_subparsers(dest="family", required=True, metavar="family")
     for family, (_, dims) in FAMILIES.items():
@@ -33,18 +38,22 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         )
         for d in dims:
             option = "--" + d.name.replace("_", "-")
+            what = d.help.replace(" [m]", "")
             if isinstance(d.default, tuple):
-                default = f"{d.default[0]:g} {d.default[1]:g}"
                 f.add_argument(
                     option,
-                    type=float,
                     nargs=2,
                     metavar=("MIN", "MAX"),
                     default=None,
-                    help=f"{d.help} (default {default})",
+                    help=f"{what}, lengths with their unit (default {' '.join(map(shown, d.default))})",
                 )
             else:
-                f.add_argument(option, type=float, default=None, help=f"{d.help} (default {d.default:g})")
+                f.add_argument(
+                    option,
+                    metavar="LENGTH",
+                    default=None,
+                    help=f"{what}, a length with its unit (default {shown(d.default)})",
+                )
         f.add_argument(
             "--out", type=Path, required=True, help="the new robot folder (must not exist, or be empty)"
         )
@@ -53,10 +62,26 @@ def add(subparsers: argparse._SubParsersAction) -> None:
         f.set_defaults(run=_run)
 
 
+def _length(option: str, shown_as: str, text: str) -> float:
+    """A dimension [m] from its text with a unit (``550mm``, ``0.55m``); a bare number is refused."""
+    try:
+        return parse_length(text, option)
+    except InvalidRequestError as err:
+        raise InvalidArgumentError(option, shown_as, str(err).removeprefix(f"{option}: ")) from err
+
+
 def _run(args: argparse.Namespace) -> int:
     _, dims = FAMILIES[args.family]
-    given = {d.name: getattr(args, d.name) for d in dims if getattr(args, d.name) is not None}
-    given = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+    given: dict[str, float | tuple[float, ...]] = {}
+    for d in dims:
+        text = getattr(args, d.name)
+        if text is None:
+            continue
+        option = "--" + d.name.replace("_", "-")
+        if isinstance(text, list):
+            given[d.name] = tuple(_length(option, " ".join(text), t) for t in text)
+        else:
+            given[d.name] = _length(option, text, text)
     robot = new_robot(args.family, args.out, args.name, show_progress(args.no_progress), **given)
     for path in robot.files:
         print(f"wrote {path}")

@@ -3,7 +3,9 @@
 :func:`check_mechanism` is what ``pkmtol check robots/<robot>`` prints: for each limb its joints
 and the number of constraint wrenches it exerts on the platform; the mobility of the closed chain;
 and, walking the task-space grid with inverse kinematics (each point warm-started from the previous
-solution), which points are reachable, the joint ranges used, and the worst conditioning.
+solution), which points are reachable, the joint ranges used, and the worst conditioning. The
+actuation is counted first (:mod:`pkmtol.kinematics.mobility`): with too few, too many or misplaced
+actuators the report says how many are needed and solves nothing else.
 
 Ranks are numerical (SVD, singular values below :data:`RANK_TOLERANCE` times the largest count as
 zero) and evaluated at the home configuration refined to exact closure. Jacobians mix metres and
@@ -118,6 +120,10 @@ class CheckReport:
             its TCP task, the TCP position in ``target_m``).
         tool: A hybrid's tool chain (its joints and the ranges they use over the task grid;
             ``twist_rank`` is the rank of its TCP Jacobian at home), None for a parallel module.
+        actuation: What is wrong with the actuation, counted before the home solve
+            (:mod:`pkmtol.kinematics.mobility`); when not empty, the home pose and the grid are
+            not solved (``points`` is empty, ``home_q`` the TOML's home, ``closure_rank`` counted
+            with every joint free).
     """
 
     mechanism: Mechanism
@@ -126,6 +132,7 @@ class CheckReport:
     closure_rank: int
     points: tuple[PointReport, ...]
     tool: LimbReport | None = None
+    actuation: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -157,7 +164,9 @@ class CheckReport:
     @property
     def problems(self) -> tuple[str, ...]:
         """What stops the mechanism from being used as described (empty when all is well)."""
-        out = []
+        out = list(self.actuation)
+        if self.actuation:
+            return tuple(out)
         if self.unreachable:
             out.append(f"{len(self.unreachable)} of {len(self.points)} task-space points are not reachable")
         if self.mobility != self.mechanism.n_actuators:
@@ -185,6 +194,9 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
     if not isinstance(mechanism, Mechanism):
         raise InvalidArgumentError("mechanism", mechanism, "expected a pkmtol.Mechanism (load_mechanism)")
     chain = ClosedChain(mechanism)
+    mobility = chain.mobility()  # before the home solve, which holds the actuators
+    if mobility.problems:
+        return _actuation_report(mechanism, chain, mobility.closure_rank, mobility.problems)
     home_q = chain.home()
     closure_jacobian = chain._evaluate(home_q, None)[1]
     closure_rank = _rank(closure_jacobian)
@@ -224,6 +236,31 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
         rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
         limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
     return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, tuple(points), tool)
+
+
+def _actuation_report(
+    mechanism: Mechanism, chain: ClosedChain, closure_rank: int, problems: tuple[str, ...]
+) -> CheckReport:
+    """The report of a mechanism whose actuation is wrong: structure only, at the TOML's home."""
+    home_q = np.concatenate([lb.home for lb in mechanism.limbs])
+    limbs = []
+    for i, limb in enumerate(mechanism.limbs):
+        k0 = int(chain.offsets[i])
+        joints = tuple(
+            JointReport(
+                name=name,
+                kind=kind,
+                actuated=j in limb.actuated,
+                lower=float(limb.model.lowerPositionLimit[j]),
+                upper=float(limb.model.upperPositionLimit[j]),
+                grid_min=float("nan"),
+                grid_max=float("nan"),
+            )
+            for j, (name, kind) in enumerate(zip(limb.joint_names, limb.joint_kinds, strict=True))
+        )
+        rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
+        limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
+    return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, (), None, problems)
 
 
 def _hybrid_points(

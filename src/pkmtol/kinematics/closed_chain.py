@@ -31,12 +31,14 @@ from pkmtol.exceptions import (
     InvalidArgumentError,
     JointLimitError,
     LoopMismatchError,
+    MobilityError,
     PlatformMismatchError,
     SingularPoseError,
     UnreachableTargetError,
 )
 from pkmtol.kinematics.frame_tables import FrameTables
 from pkmtol.kinematics.loops import frame_placements, loop_gaps, loop_layout, loop_rows
+from pkmtol.kinematics.mobility import Mobility, count_mobility
 from pkmtol.model.mechanism import Mechanism
 
 #: Closure/task residual at which Newton stops [m, rad].
@@ -148,6 +150,8 @@ class ClosedChain:
         The actuators stay at their ``home`` values; the passive joints are solved.
 
         Raises:
+            MobilityError: the closure fails because the actuators are too few, too many or do not
+                determine the pose (counted by :meth:`mobility`; it names the actuators needed).
             PlatformMismatchError: the limbs cannot be closed near ``home``.
         """
         q0 = np.concatenate([lb.home for lb in self.mechanism.limbs])
@@ -155,16 +159,30 @@ class ClosedChain:
         free[self.actuated_idx] = False
         try:
             q, _, _ = self._newton(q0, free, None, "home closure")
-        except SingularPoseError as err:
+        except (SingularPoseError, ConvergenceError) as err:
+            problems = self.mobility().problems  # too few or misplaced actuators: say so
+            if problems:
+                raise MobilityError("; ".join(problems)) from err
+            if isinstance(err, ConvergenceError):
+                raise self._home_mismatch(q0) from err
             mismatch = self._home_mismatch(q0)
             if max(mismatch.distance_m, mismatch.angle_rad) > 1e-9:
                 raise mismatch from err
             raise SingularPoseError(
                 "the closure Jacobian at the home configuration (actuators held)", err.condition
             ) from err
-        except ConvergenceError as err:
-            raise self._home_mismatch(q0) from err
         return q
+
+    def mobility(self) -> Mobility:
+        """The mechanism's mobility and what its actuators leave free, near ``home`` (no joint held).
+
+        See :mod:`pkmtol.kinematics.mobility`; its ``problems`` name the actuators needed.
+        """
+        mech = self.mechanism
+        names = [f"{lb.name}.{j}" for lb in mech.limbs for j in lb.joint_names]
+        task_dof = None if mech.tool is not None else (3 if mech.task_normal is None else 2)
+        q0 = np.concatenate([lb.home for lb in mech.limbs])
+        return count_mobility(lambda q: self._evaluate(q, None), q0, names, self.actuated_idx, task_dof)
 
     def _home_mismatch(self, q0: np.ndarray) -> PlatformMismatchError:
         """The largest gap at ``q0``: a limb's platform frame, or an internal loop."""

@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.exceptions import MechanismFormatError, PkmtolWarning, URDFError
-from pkmtol.model.urdf_xml import check_urdf_tree, resolve_meshes
+from pkmtol.model.urdf_xml import check_urdf_tree, fill_missing_limits, resolve_meshes
 from pkmtol.values import MAX_LENGTH_M
 
 _QUOTE = reprlib.Repr()
@@ -84,11 +84,17 @@ def parser_reason(text: str) -> str:
 
 
 def build_model(limb: str, path: Path, text: str) -> tuple[pin.Model, ET.Element]:
-    """Parse a URDF text: ``(pin.Model, XML root)``; URDFError names the limb and the parser's reason."""
+    """Parse a URDF text: ``(pin.Model, XML root)``; URDFError names the limb and the parser's reason.
+
+    A revolute or continuous joint without a range is read over [−π, π] with a
+    :class:`~pkmtol.exceptions.MissingLimitWarning` (:func:`~pkmtol.model.urdf_xml.fill_missing_limits`).
+    """
     try:
         root = ET.fromstring(text)
     except ET.ParseError as err:
         raise URDFError(limb, path, f"malformed XML: {err}") from err
+    if fill_missing_limits(root, limb, path):
+        text = ET.tostring(root, encoding="unicode")
     check_urdf_tree(root, limb, path)
     with captured_stderr() as noise:
         try:

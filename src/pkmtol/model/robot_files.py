@@ -11,6 +11,7 @@ import json
 import math
 import tomllib
 from collections.abc import Sequence
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -39,11 +40,20 @@ def _strings(vs: Sequence[str]) -> str:
     return "[" + ", ".join(_str(v) for v in vs) + "]"
 
 
+def length_text(value_m: float) -> str:
+    """A length [m] as ``pkmtol new`` takes it: in mm with its unit, exact (``0.55`` → ``550mm``)."""
+    mm = Decimal(repr(float(value_m))).scaleb(3).normalize()
+    return f"{mm:f}mm"
+
+
 def command_line(robot: RobotDraft, out: str) -> str:
-    """The ``pkmtol new`` command that writes ``robot`` into ``out`` (every dimension spelled out)."""
+    """The ``pkmtol new`` command that writes ``robot`` into ``out`` (every dimension spelled out, in mm)."""
     parts = ["pkmtol new", robot.family]
     for key, value in robot.dimensions.items():
-        shown = " ".join(_num(v) for v in value) if isinstance(value, tuple | list) else _num(value)
+        if isinstance(value, tuple | list):
+            shown = " ".join(length_text(v) for v in value)
+        else:
+            shown = length_text(value)
         parts.append(f"--{key.replace('_', '-')} {shown}")
     parts.append(f"--out {out}")
     return " ".join(parts)

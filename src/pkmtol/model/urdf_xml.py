@@ -3,8 +3,12 @@
 Pinocchio (through urdfdom) silently normalises a joint axis such as ``0 0 5``, keeps a zero axis
 as a joint that does not move, ignores ``<mimic>`` and reports most other faults only on stderr.
 :func:`check_urdf_tree` refuses each of these with a :class:`~pkmtol.exceptions.URDFError` that
-names the joint or link; :func:`resolve_meshes` finds the mesh files the visuals name and drops
-(with a :class:`~pkmtol.exceptions.MissingMeshWarning`) the visuals whose mesh does not exist.
+names the joint or link; :func:`fill_missing_limits` reads a revolute or continuous joint
+without ``lower``/``upper`` (urdfdom: [0, 0]) as ±π with a
+:class:`~pkmtol.exceptions.MissingLimitWarning` and refuses such a prismatic joint
+(:class:`~pkmtol.exceptions.MissingLimitError`); :func:`resolve_meshes` finds the mesh files
+the visuals name and drops (with a :class:`~pkmtol.exceptions.MissingMeshWarning`) the visuals
+whose mesh does not exist.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from pkmtol.exceptions import MissingMeshWarning, URDFError
+from pkmtol.exceptions import MissingLimitError, MissingLimitWarning, MissingMeshWarning, URDFError
 from pkmtol.values import MAX_LENGTH_M
 
 #: Joint types of the URDF format (pkmtol's limbs take revolute and prismatic; see make_limb).
@@ -25,6 +29,56 @@ URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", 
 AXIS_TOLERANCE = 1e-6
 
 _Fail = Callable[[str], NoReturn]
+
+
+def fill_missing_limits(root: ET.Element, limb: str, path: Path | None) -> bool:
+    """Give every revolute or continuous joint of ``root`` without a range the range [−π, π], in place.
+
+    A missing ``lower`` becomes −π and a missing ``upper`` +π (urdfdom would read both as 0, a joint
+    that cannot move); a continuous joint becomes revolute over [−π, π] (pkmtol's limbs take bounded
+    joints). Each joint so read gets a :class:`~pkmtol.exceptions.MissingLimitWarning`. A missing
+    ``effort``/``velocity`` of a ``<limit>`` written here is set to 0 (pkmtol does not use them).
+
+    Returns:
+        Whether ``root`` was changed.
+
+    Raises:
+        MissingLimitError: a prismatic joint without ``lower`` or ``upper`` (no stroke can be assumed).
+    """
+    changed = False
+    for joint in root.findall("joint"):
+        jtype, name = joint.get("type"), str(joint.get("name", ""))
+        limit = joint.find("limit")
+        if jtype == "prismatic":
+            if limit is None or limit.get("lower") is None or limit.get("upper") is None:
+                raise MissingLimitError(limb, path, name)
+            continue
+        if jtype not in ("revolute", "continuous"):
+            continue
+        continuous = jtype == "continuous"
+        if not continuous and limit is not None and None not in (limit.get("lower"), limit.get("upper")):
+            continue
+        if limit is None:
+            limit = ET.SubElement(joint, "limit")
+        if continuous:
+            limit.attrib.pop("lower", None)
+            limit.attrib.pop("upper", None)
+            joint.set("type", "revolute")
+        limit.set("lower", limit.get("lower", repr(-math.pi)))
+        limit.set("upper", limit.get("upper", repr(math.pi)))
+        for attr in ("effort", "velocity"):
+            limit.set(attr, limit.get(attr, "0"))
+        lo, hi = (_float_or_nan(limit.get(a, "")) for a in ("lower", "upper"))
+        warnings.warn(MissingLimitWarning(limb, path, name, lo, hi, continuous), stacklevel=4)
+        changed = True
+    return changed
+
+
+def _float_or_nan(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
 
 
 def check_urdf_tree(root: ET.Element, limb: str, path: Path | None) -> None:

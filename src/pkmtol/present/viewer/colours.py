@@ -27,6 +27,8 @@ VIRIDIS = np.array(
 SAFE_RGB = (0.10, 0.65, 0.25)
 FAILED_RGB = (0.85, 0.10, 0.10)
 P_RGB = (0.85, 0.0, 0.85)
+#: The limbs' links, joint frame to joint frame (steel blue: apart from the URDF's own colours).
+LINK_RGB = (0.20, 0.33, 0.60)
 BACKGROUND_RGB = (1.0, 1.0, 1.0)
 GROUND_RGB = (0.62, 0.62, 0.62)
 

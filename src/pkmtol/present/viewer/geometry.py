@@ -141,6 +141,12 @@ def mechanism_points(result: DesignResult) -> np.ndarray:
     return np.array(pts)
 
 
+def scene_size(result: DesignResult) -> float:
+    """The size of the mechanism at the design pose: the diagonal of the box around its joints [m]."""
+    pts = mechanism_points(result)
+    return max(float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))), 1e-3)
+
+
 def scene_bounds(result: DesignResult) -> Bounds:
     """The box around the mechanism at the design pose and the task-space grid (the camera frames it)."""
     mech = mechanism_points(result)
@@ -159,6 +165,36 @@ def camera_direction(result: DesignResult) -> tuple[np.ndarray, float]:
 def camera_distance(radius: float) -> float:
     """Distance from the centre at which a sphere of ``radius`` fills the vertical field of view."""
     return 1.05 * radius / float(np.sin(np.radians(CAMERA_FOV_DEG / 2)))
+
+
+#: The box's corners stay within this fraction of the half field of view (a margin at the edge).
+FRAME_FILL = 0.92
+
+
+def framing_distance(points: np.ndarray, centre: np.ndarray, direction: np.ndarray, margin: float) -> float:
+    """The closest camera distance along ``direction`` (from ``centre``) at which every point is in view.
+
+    The camera looks at ``centre`` with z up. A point ``c`` (relative to the centre) is at depth
+    ``t − c·d`` and at ``(c·r, c·u)`` across the image (``r``, ``u``: the image's right and up
+    axes); it is in view when both ``|c·r| + margin`` and ``|c·u| + margin`` are at most
+    ``FRAME_FILL · tan(FOV/2)`` times its depth (the vertical field of view in both directions: a
+    square window at worst). Framing the points themselves, not the sphere around their box
+    (:func:`camera_distance`), lets the mechanism fill more of the view.
+
+    Args:
+        points: Shape (n, 3): what must be seen (frame K) [m].
+        centre: Shape (3,): where the camera looks (frame K) [m].
+        direction: Shape (3,): from the centre towards the camera (normalised here).
+        margin: Added to each point's distance across the image (a glyph's radius) [m].
+    """
+    d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    right = np.cross(-d, np.array([0.0, 0.0, 1.0]))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -d)
+    rel = np.asarray(points, dtype=float) - np.asarray(centre, dtype=float)
+    reach = FRAME_FILL * float(np.tan(np.radians(CAMERA_FOV_DEG / 2)))
+    across = np.maximum(np.abs(rel @ right), np.abs(rel @ up)) + margin
+    return float(np.max(rel @ d + across / reach))
 
 
 def nice_step(length: float, lines: int = 10) -> float:

@@ -13,14 +13,30 @@ from pkmtol.design.job import DesignResult
 from pkmtol.design.signoff import result_maps, verified_sigma
 from pkmtol.design.verification import sample_errors
 from pkmtol.error_model.accuracy import norm_moments
+from pkmtol.model.limb import Limb
 from pkmtol.present.viewer.backend import require_meshcat
-from pkmtol.present.viewer.colours import FAILED_RGB, P_RGB, SAFE_RGB, hex_colour, viridis
-from pkmtol.present.viewer.geometry import Scene, rod, rod_transform, skeleton_geometry, translation, triad
+from pkmtol.present.viewer.colours import FAILED_RGB, LINK_RGB, P_RGB, SAFE_RGB, hex_colour, viridis
+from pkmtol.present.viewer.geometry import (
+    Scene,
+    rod,
+    rod_transform,
+    scene_size,
+    skeleton_geometry,
+    translation,
+    triad,
+)
 from pkmtol.present.viewer.options import GLYPH_SPACING, ROOT, SceneOptions
 from pkmtol.present.viewer.tool_layer import draw_tool, place_tool
 
 #: Documented API of this module (the other names serve the scene's own modules).
-__all__ = ["SpheresLayer", "VerificationLayer"]
+__all__ = ["SpheresLayer", "VerificationLayer", "link_segments"]
+
+#: Radius of a link rod, relative to the size of the mechanism (:func:`scene_size`).
+LINK_RADIUS_FRACTION = 0.008
+#: A joint-to-joint distance below this is no link (coincident axes of a U or S joint) [m].
+MIN_LINK_M = 1e-9
+#: Opacity of the platform's visuals (the joints under it show through).
+PLATFORM_OPACITY = 0.35
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,31 +121,60 @@ class VerificationLayer:
 
 def draw_robot(
     scene: Scene, result: DesignResult, animate: bool, with_reference: bool
-) -> tuple[list[str], int]:
-    """Every limb through Pinocchio's MeshcatVisualizer; returns limb paths, animation frames."""
+) -> tuple[list[str], int, tuple[np.ndarray, ...]]:
+    """Every limb: its URDF visuals (Pinocchio's MeshcatVisualizer) and its links, joint to joint.
+
+    The URDF visuals of a limb are drawn as its file gives them (a leg's cylinder has the length
+    written there, whatever the stroke); the links layer draws, at each pose, a rod from every joint
+    frame to the next and from the last to the platform frame, so each limb is drawn whole from its
+    base joint to the platform. The platform's visuals are drawn once, see-through, so that the
+    joints under it stay visible.
+
+    Returns:
+        The limb paths, the animation frames, and per limb its link segments at the design pose
+        (shape (k, 2, 3): start and end of each rod, frame K [m]).
+    """
     from pinocchio.visualize import MeshcatVisualizer
     from pinocchio.visualize.meshcat_visualizer import applyScalingOnHomegeneousTransform
 
     pose = result.grid.poses[result.worst_index]
-    paths, vizs = [], []
+    radius = LINK_RADIUS_FRACTION * scene_size(result)
+    paths, vizs, links = [], [], []
     for i, limb in enumerate(result.mechanism.limbs):
         visual = limb.visual_model
         if visual is None:
             visual = skeleton_geometry(limb.model)
+        plate = _platform_visuals(limb, visual)
+        saved = {gid: visual.geometryObjects[gid].meshColor.copy() for gid in plate}
+        for gid in plate:  # see-through: the joints under the platform stay visible
+            visual.geometryObjects[gid].meshColor = np.r_[saved[gid][:3], PLATFORM_OPACITY]
         viz = MeshcatVisualizer(limb.model, None, visual)
         viz.initViewer(viewer=scene.vis)
         root = f"{ROOT}/robot/{limb.name}"
-        viz.loadViewerModel(rootNodeName=root)
+        try:
+            viz.loadViewerModel(rootNodeName=root)
+        finally:
+            for gid, colour in saved.items():
+                visual.geometryObjects[gid].meshColor = colour
+        if i:  # the platform once (limb 0's), not one copy per limb
+            for gid in plate:
+                scene.vis[f"{root}/visuals/{visual.geometryObjects[gid].name}"].set_property("visible", False)
         viz.display(np.asarray(pose.q[i], dtype=float))
         paths.append(root)
         scene.nodes.append(root)
         scene.nodes.extend(f"{root}/visuals/{g.name}" for g in visual.geometryObjects)
+        segments = link_segments(limb, np.asarray(pose.q[i], dtype=float))
+        links.append(segments)
+        for k, (a, b) in enumerate(segments):
+            node = scene.node(f"{root}/links/{k}")
+            node.set_object(require_meshcat().geometry.Cylinder(1.0, radius), _link_material())
+            node.set_transform(_unit_rod(a, b))
         vizs.append((viz, visual))
     tool = draw_tool(scene, result, int(result.worst_index))  # a hybrid: the wrist and the spindle
     if tool is not None:
         paths.append(tool[0])
     if not animate:
-        return paths, 0
+        return paths, 0, tuple(links)
     meshcat = require_meshcat()
     order = _tour(result.grid.points_m, result.worst_index)
     anim = meshcat.animation.Animation(default_framerate=4)
@@ -143,12 +188,56 @@ def draw_robot(
                 for gid, g in enumerate(visual.geometryObjects):
                     t = applyScalingOnHomegeneousTransform(viz.visual_data.oMg[gid].homogeneous, g.meshScale)
                     f[f"{paths[i]}/visuals/{g.name}"].set_transform(t)
+                for j, (a, b) in enumerate(link_segments(result.mechanism.limbs[i], q)):
+                    f[f"{paths[i]}/links/{j}"].set_transform(_unit_rod(a, b))
             if tool is not None:
                 place_tool(f, tool[0], tool[1], tool[2], result.grid, k)
             if with_reference:
                 _reference_frames(f, pk)
     scene.vis.set_animation(anim, play=False)
-    return paths, len(order)
+    return paths, len(order), tuple(links)
+
+
+def link_segments(limb: Limb, q: np.ndarray) -> np.ndarray:
+    """Shape (k, 2, 3): the rods of ``limb`` at ``q``, joint frame to joint frame, frame K [m].
+
+    One rod from each joint's origin to each of its children's (coincident origins, such as a
+    universal or spherical joint's, give none), and one from the platform frame's joint to the
+    platform frame; the base joint's origin is where the first rod starts.
+    """
+    model = limb.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    origin = [data.oMi[j].translation.copy() for j in range(model.njoints)]
+    out = []
+    for j in range(2, model.njoints):
+        a, b = origin[model.parents[j]], origin[j]
+        if model.parents[j] > 0 and np.linalg.norm(b - a) > MIN_LINK_M:
+            out.append((a, b))
+    end = data.oMf[limb.platform_frame].translation.copy()
+    last = origin[model.frames[limb.platform_frame].parentJoint]
+    if np.linalg.norm(end - last) > MIN_LINK_M:
+        out.append((last, end))
+    return np.array(out, dtype=float).reshape(-1, 2, 3)
+
+
+def _platform_visuals(limb: Limb, visual: Any) -> list[int]:
+    """Ids of the geometry objects of ``visual`` on the platform link."""
+    name = limb.model.frames[limb.platform_frame].name
+    frames = limb.model.frames
+    on = [gid for gid, g in enumerate(visual.geometryObjects) if g.parentFrame < len(frames)]  # set
+    return [gid for gid in on if frames[visual.geometryObjects[gid].parentFrame].name == name]
+
+
+def _unit_rod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Transform of meshcat's unit-length cylinder (axis y) onto the segment ``a``–``b``."""
+    t = rod_transform(a, b)
+    t[:3, 1] *= max(float(np.linalg.norm(np.asarray(b) - np.asarray(a))), 1e-12)
+    return t
+
+
+def _link_material() -> Any:
+    return require_meshcat().geometry.MeshLambertMaterial(color=hex_colour(LINK_RGB))
 
 
 def _tour(points: np.ndarray, start: int) -> list[int]:

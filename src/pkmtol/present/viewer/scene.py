@@ -13,8 +13,9 @@ from pkmtol.present.viewer.geometry import (
     Bounds,
     Scene,
     camera_direction,
-    camera_distance,
+    framing_distance,
     ground_grid,
+    mechanism_points,
     scene_bounds,
     translation,
 )
@@ -59,6 +60,9 @@ class SceneSummary:
             controls always look at (a point ``p`` of K is drawn at ``p + offset_m``).
         camera_m: Shape (3,): the default camera's position relative to the box's centre (K axes).
         ground: ``(z [m], spacing [m])`` of the ground grid in K; None without the ``ground`` layer.
+        links_m: Per limb (mechanism order), its link rods at the design pose, joint frame to joint
+            frame (shape (k, 2, 3): start and end, frame K [m]; drawn at
+            ``pkmtol/robot/<limb>/links/<k>``); empty without the robot layer.
 
     """
 
@@ -76,17 +80,21 @@ class SceneSummary:
     offset_m: np.ndarray | None = None
     camera_m: np.ndarray | None = None
     ground: tuple[float, float] | None = None
+    links_m: tuple[np.ndarray, ...] = ()
 
 
-def _set_camera(vis: Any, result: DesignResult, bounds: Bounds) -> np.ndarray:
-    """Frame the mechanism and the task space: the camera at the right distance from the box's centre.
+def _set_camera(vis: Any, result: DesignResult, bounds: Bounds, margin: float) -> np.ndarray:
+    """Frame the mechanism and the task space: the camera as close as sees them all, at the box's centre.
+
+    ``margin``: room for the error spheres around the grid points [m].
 
     meshcat 0.3's orbit controls always look at meshcat's origin; the ``pkmtol`` node is shifted
     so that the box's centre is there (:func:`build_scene`). Returns the camera position relative
     to the centre (K axes) [m].
     """
     c, _ = camera_direction(result)
-    d = c * camera_distance(bounds.radius)
+    points = np.vstack([mechanism_points(result), result.grid.points_m])
+    d = c * framing_distance(points, bounds.centre, c, margin)
     # the camera's position is in meshcat's y-up frame: (x, z_up, -y)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [d[0], d[2], -d[1]])
     return d
@@ -129,15 +137,16 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
         draw_reference(scene, result)
     robot_paths: list[str] = []
     frames = 0
+    links: tuple[np.ndarray, ...] = ()
     if "robot" in opt.layers:
-        robot_paths, frames = draw_robot(scene, result, opt.animate, "reference" in opt.layers)
+        robot_paths, frames, links = draw_robot(scene, result, opt.animate, "reference" in opt.layers)
     spheres = draw_spheres(scene, result, opt) if "error_spheres" in opt.layers else None
     rmax = spheres.max_radius_m if spheres is not None else 0.0
     verification = draw_verification(scene, result, opt, rmax) if "verification" in opt.layers else None
     legend = legend_lines(result, spheres, verification)
     if "legend" in opt.layers:
         draw_legend(scene, result, legend, "error_spheres" in opt.layers, bounds)
-    camera = _set_camera(vis, result, bounds) if opt.camera else None
+    camera = _set_camera(vis, result, bounds, 1.5 * rmax) if opt.camera else None
     return SceneSummary(
         root=f"{vis.path.lower()}/{ROOT}",
         layers={name: f"{ROOT}/{name}" for name in opt.layers},
@@ -153,4 +162,5 @@ def build_scene(result: DesignResult, vis: Any, options: SceneOptions | None = N
         offset_m=offset,
         camera_m=camera,
         ground=ground,
+        links_m=links,
     )

@@ -1,0 +1,412 @@
+"""Regenerate (or check) the generated blocks of the docs pages: every number comes from a command.
+
+A page marks a block as
+
+    <!-- generated: NAME inputs=HASH -->
+    ...what the generator NAME printed...
+    <!-- end -->
+
+and :data:`GENERATORS` says how NAME is made: a command (``pkmtol ...`` or a script), run in a
+fresh process at the repository root with this worktree's ``src`` first on the path and
+``COLUMNS=100``. ``HASH`` is the SHA-256 (first 16 hex digits) of the generator's inputs: every
+file of ``src/pkmtol``, this script, and the generator's own inputs (the robots and scripts it
+reads). So ``--check`` is cheap (no command runs): a block is stale when its recorded hash differs
+from its inputs' hash today, i.e. when the code or the robot changed since it was generated.
+``tests/test_docs.py`` runs the check, and regenerates the cheap blocks (a few seconds each) and
+compares them verbatim.
+
+Usage:
+    python scripts/make_docs.py                     # regenerate every block
+    python scripts/make_docs.py --only machines     # one generator (its blocks, in every page)
+    python scripts/make_docs.py --check             # exit 1 listing the stale or unknown blocks
+    python scripts/make_docs.py --list              # the generators, their commands and pages
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from pkmtol.present.terminal import fit_text
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+SEED = "robots/r2rps_ups"
+BLOCK = re.compile(
+    r"<!-- generated: (?P<name>[\w-]+) inputs=(?P<hash>\w+) -->\n(?P<body>.*?)<!-- end -->", re.S
+)
+
+
+@dataclass(frozen=True)
+class Generator:
+    """How one or more blocks are made.
+
+    Attributes:
+        name: The generator's name (its blocks are ``name`` and ``name-<part>``).
+        command: What it runs, as shown on the page (``pkmtol`` is ``python -m pkmtol.cli``).
+        make: ``make(tmp) -> {block name: text}``; ``tmp`` is a fresh folder.
+        inputs: Files (globs relative to the repository) it reads besides ``src/pkmtol``.
+        cheap: Fast enough (a few seconds) for the docs test to regenerate and compare.
+    """
+
+    name: str
+    command: str
+    make: Callable[[Path], dict[str, str]]
+    inputs: tuple[str, ...]
+    cheap: bool = False
+
+
+def run(command: str, cwd: Path = ROOT, columns: int = 100) -> tuple[str, float, float]:
+    """Run ``command`` (``pkmtol`` → this Python's ``-m pkmtol.cli``): (stdout, wall [s], CPU [s])."""
+    words = command.split()
+    argv = (
+        [sys.executable, "-m", "pkmtol.cli", *words[1:]] if words[0] == "pkmtol" else [sys.executable, *words]
+    )
+    env = dict(
+        os.environ,
+        COLUMNS=str(columns),
+        PYTHONPATH=os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+    )
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if done.returncode not in (0, 1):
+        raise SystemExit(f"make_docs: `{command}` failed ({done.returncode}):\n{done.stderr}")
+    return done.stdout, wall, cpu
+
+
+def fenced(text: str) -> str:
+    return "```text\n" + text.rstrip("\n") + "\n```\n"
+
+
+def between(lines: list[str], first: str, stop: str | None) -> list[str]:
+    """The lines from the first that starts with ``first`` up to (not with) the next starting ``stop``."""
+    start = next(k for k, line in enumerate(lines) if line.startswith(first))
+    end = next((k for k in range(start + 1, len(lines)) if stop and lines[k].startswith(stop)), len(lines))
+    return lines[start:end]
+
+
+# --- the generators ------------------------------------------------------------------------------
+
+
+def _machines(tmp: Path) -> dict[str, str]:
+    out, _, _ = run(MACHINES)
+    return {"machines": out.rstrip("\n") + "\n"}
+
+
+def _check(tmp: Path) -> dict[str, str]:
+    out, _, _ = run(f"pkmtol check {SEED} --no-progress")
+    return {"tutorial-check": fenced(out)}
+
+
+def _mobility(tmp: Path) -> dict[str, str]:
+    folder = tmp / "r2rps_ups"
+    shutil.copytree(ROOT / SEED, folder)
+    toml = folder / "mechanism.toml"
+    toml.write_text(
+        toml.read_text(encoding="utf-8").replace('actuated = ["limb3_p3"]', "actuated = []"), "utf-8"
+    )
+    out, _, _ = run(f"pkmtol check {folder} --no-progress")
+    return {"tutorial-mobility": fenced(out.rstrip("\n").splitlines()[-1])}
+
+
+def _errors(tmp: Path) -> dict[str, str]:
+    out, _, _ = run(f"pkmtol errors {SEED}")
+    lines = out.rstrip("\n").splitlines()
+    rule = next(k for k, line in enumerate(lines) if line.startswith("---------"))
+    rows = lines[rule + 1 :]
+    limb4 = [line for line in rows if ",4}" in line.split()[0]]  # limb 4's rows (D–H names δx_{j,4})
+    shown = [*lines[: rule + 1], f"…  ({len(rows) - len(limb4)} rows of limbs 1–3)", *limb4]
+    return {"tutorial-errors": fenced("\n".join(shown))}
+
+
+def _allocate(tmp: Path) -> dict[str, str]:
+    """Sections 4 and 6 of the tutorial: the FOSM design, the calibrated design and its study."""
+    out, _, _ = run(f"pkmtol allocate {SEED} --method fosm --out {tmp}/out")
+    lines = [line.replace(f"{tmp}/out", "out/r2rps_ups") for line in out.rstrip("\n").splitlines()]
+    head = between(lines, "pkmtol allocation", "claimed by FOSM")
+    wrote = [line for line in lines if line.startswith("wrote ")]
+    note = [
+        "…  (contributions, stack-up, capability and drawing tolerances — docs/report.md —, claimed-vs-true",
+        "   reliability, traditional method, stage times)",
+        "",
+    ]
+    made = {"tutorial-allocate": fenced("\n".join([*head, *note, *wrote]))}
+    n = re.search(r"(\d+) uncompensatable,", out)
+    ratio = re.search(r"median traditional/new ([\d.]+)", out)
+    made["tutorial-allocate-prose"] = (
+        "How to read the table: each row is an uncompensatable error with its sensitivity at the most\n"
+        "error-sensitive point; each column is a reliability index β, with R = Φ(β) above the table. The "
+        f"entry is the tolerance σ_i = Δλ*/(√n ω_i β) (n = {n.group(1) if n else '?'}): in the design case "
+        f"β = 2, the distance `δa_{{3,4}}` of limb 4 must be held to {_tolerance(lines, 'δa_{3,4}')} mm and "
+        f"the twist angle `δφ_{{4,4}}` to {_tolerance(lines, 'δφ_{4,4}')} mrad; σ_i·β is the same in every "
+        "column of a row. The verification then draws errors at the β = 2 tolerances at random task-space "
+        "poses, with the linear model and with exact kinematics of the perturbed mechanism: the paper's "
+        f"uniform ±σ errors fail in {_failures(lines, 'uniform_sigma')} % of the linear samples; Gaussian "
+        f"errors of standard deviation σ_i in {_failures(lines, 'gaussian')} %, against the 2.28 % that "
+        "FOSM's R = 97.72 % allows. The rest of the output compares FOSM's claim with the exact "
+        "reliability and with the traditional method (every error, no calibration), whose shared "
+        f"tolerances are {float(ratio.group(1)) if ratio else float('nan'):.2f} × as wide.\n"
+    )
+    made.update(_calibrated(tmp, _row(lines, "δd_{1,4}")[3]))
+    return made
+
+
+def _row(lines: list[str], name: str) -> list[str]:
+    return next(line.split() for line in lines if len(line.split()) > 2 and line.split()[1] == name)
+
+
+def _tolerance(lines: list[str], name: str) -> str:
+    """The β = 2 tolerance of ``name`` in the first panel of the tolerance table."""
+    header = next(line.split() for line in lines if line.startswith("No.") and "β=2" in line)
+    return _row(lines, name)[header.index("β=2") + 1]  # the sensitivity cell is two words
+
+
+def _failures(lines: list[str], errors: str) -> str:
+    """The linear failure rate [%] of ``errors`` in the verification table."""
+    return next(line.split() for line in lines if line.split()[:2] == [errors, "linear"])[5]
+
+
+def _calibrated(tmp: Path, sens4: str) -> dict[str, str]:
+    out, wall, cpu = run(CALIBRATED + f" --out {tmp}/cal")
+    lines = out.rstrip("\n").splitlines()
+    shown = [lines[0], "…", *between(lines, "compensation:", "Traditional"), "…"]
+    stages = next((line for line in lines if line.startswith("stage times:")), "")
+    exact = re.search(r"exact design ([\d.]+) s", stages)
+    part = f", {float(exact.group(1)):.0f} s of it the exact design" if exact else ""
+    plan = re.search(r"'compensatable' \((\d+) parameters, rank (\d+)\), (\d+) d-optimal poses", out)
+    noise = re.search(r"tracker noise ([\d.]+) mm per coordinate", out)
+    classes = re.search(r"classes: (\d+) identified, \d+ absorbed, (\d+) toleranced", out)
+    floor = re.search(r"leaves σ = ([\d.]+) µm", out)
+    if not (plan and noise and classes and floor):
+        raise SystemExit("make_docs: the calibrated allocate output changed; update _calibrated")
+    made = {
+        "tutorial-allocate-calibrated": fenced("\n".join(shown)),
+        "tutorial-allocate-calibrated-prose": (
+            f"What changed against section 4: the calibration plan ({plan.group(3)} D-optimal poses, "
+            f"tracker noise {noise.group(1)} mm per coordinate, the controller's {plan.group(1)} "
+            f"compensatable parameters of which {plan.group(2)} are identifiable) identifies "
+            f"{classes.group(1)} parameters, so only {classes.group(2)} remain to be toleranced, and their "
+            f"sensitivities after calibration are much smaller: `δd_{{1,4}}` goes from {sens4} to "
+            f"{_row(lines, 'δd_{1,4}')[3]} µm/µm. The tracker noise alone leaves σ = "
+            f"{float(floor.group(1)):.1f} µm at the design point, a floor no tolerance can buy back (a "
+            "target below β·σ is refused with `NoiseFloorError`). `--method exact` spends the rest of the "
+            "budget per parameter on the exact distribution of Δλ, and `--orientation-target` adds the "
+            "tool axis' tilt Δα as a second requirement: the orientation section gives the joint "
+            "probability of missing either. The Gaussian errors at the exact design fail in "
+            f"{_failures(lines, 'gaussian')} % of the linear samples; the exact-kinematics samples here "
+            f"are a smoke check (the run took {wall:.0f} s, {cpu:.0f} s of CPU, when this page was "
+            f"generated{part}). The thorough check is a simulated calibration of machines built at these "
+            "tolerances:\n"
+        ),
+    }
+    made.update(_study(tmp))
+    return made
+
+
+def _study(tmp: Path) -> dict[str, str]:
+    # whole rows to read the numbers from; the page shows them fitted to 100 columns, as printed
+    out, wall, cpu = run(STUDY.replace("out/r2rps_ups", f"{tmp}/cal") + f" --out {tmp}/study", columns=1000)
+    lines = out.rstrip("\n").splitlines()
+    k = next(i for i, line in enumerate(lines) if line.lstrip().startswith("mean Δλ [µm]"))
+    end = next((i for i in range(k + 2, len(lines)) if not lines[i].strip()), len(lines))
+    table = lines[k:end]
+    shown = [*table[:2], *(line for line in table[2:] if line.startswith(STUDY_ROWS)), "…"]
+    names = [re.split(r"\s{2,}", line.strip())[0] for line in table[2:]]
+    ideal = _beyond(table, next(n for n in names if n.startswith("Eq. 25")))
+    after = _beyond(table, next(n for n in names if n.startswith("after calibration: compensatable")))
+    gaps = [
+        abs(a - b)
+        for name in names
+        if name.startswith("after calibration: ")
+        and "linear prediction: " + name.removeprefix("after calibration: ") in names
+        for a, b in zip(
+            _microns(table, name),
+            _microns(table, "linear prediction: " + name.removeprefix("after calibration: ")),
+            strict=True,
+        )
+    ]
+    return {
+        "tutorial-allocate-study": (
+            "draws 100 machines at these tolerances (the errors the calibration identifies, compensatable "
+            "or not, at the manufacturing σ of the `[calibration]` table, by default 0.1 mm and 0.5 mrad), "
+            "measures each at the planned poses on exact kinematics with tracker noise, identifies, "
+            f"compensates and measures held-out random poses ({wall:.0f} s, {cpu:.0f} s of CPU, when this "
+            "page was generated):\n\n" + fenced(fit_text("\n".join(shown), 100)) + "\n"
+            f"The tolerances that Eq. 25 would call far too loose ({ideal:.1f} % of the poses beyond Δλ* if "
+            "the controller only knew the compensatable errors) meet the requirement on the really "
+            f"calibrated machines in all but {after:.2f} % of the held-out poses, and the linear "
+            "post-calibration model predicts the exact result to within "
+            f"{max(gaps, default=float('nan')):.1f} µm (mean, p95, p99 and max of Δλ). "
+            "[compensation.md](compensation.md) has the method and the cost comparison.\n"
+        )
+    }
+
+
+STUDY_ROWS = (
+    "before calibration",
+    "Eq. 25",
+    "after calibration: compensatable",
+    "linear prediction: compensatable",
+)
+
+
+def _cells(table: list[str], name: str) -> list[str]:
+    """The cells of row ``name`` (split at runs of two or more spaces), without the name."""
+    row = next(line for line in table[2:] if line.strip().startswith(name))
+    return re.split(r"\s{2,}", row.strip())[1:]
+
+
+def _microns(table: list[str], name: str) -> list[float]:
+    return [float(c) for c in _cells(table, name)[:4]]
+
+
+def _beyond(table: list[str], name: str) -> float:
+    return float(_cells(table, name)[4].split()[0])
+
+
+ALLOCATE = f"pkmtol allocate {SEED} --method fosm"
+MACHINES = (
+    "scripts/compare_machines.py robots/r2rps_ups robots/tricept robots/exechon robots/sprint_z3 "
+    "--beta 2 --appendix"
+)
+CALIBRATED = (
+    f"pkmtol allocate {SEED} --compensation calibrated --method exact --orientation-target 0.5mrad "
+    "--no-figures --no-progress"
+)
+STUDY = (
+    f"pkmtol calibrate {SEED} --simulate --machines 100 --tolerances out/r2rps_ups/allocation.json "
+    "--no-figures"
+)
+OTHERS = ("robots/tricept/*", "robots/exechon/*", "robots/sprint_z3/*")
+SEED_FILES = (f"{SEED}/*",)
+
+GENERATORS = {
+    g.name: g
+    for g in (
+        Generator("machines", "python " + MACHINES, _machines, ("scripts/compare_*", *OTHERS, *SEED_FILES)),
+        Generator("tutorial-check", f"pkmtol check {SEED}", _check, SEED_FILES, cheap=True),
+        Generator("tutorial-mobility", f"pkmtol check <{SEED}, limb 3 passive>", _mobility, SEED_FILES, True),
+        Generator("tutorial-errors", f"pkmtol errors {SEED}", _errors, SEED_FILES, cheap=True),
+        Generator("tutorial-allocate", f"{ALLOCATE}; {CALIBRATED}; {STUDY}", _allocate, SEED_FILES),
+    )
+}  # fmt: skip
+
+
+# --- pages ---------------------------------------------------------------------------------------
+
+
+def inputs_hash(gen: Generator) -> str:
+    """SHA-256 (16 hex digits) of ``src/pkmtol``, this script and the generator's inputs."""
+    files = set((ROOT / "src" / "pkmtol").rglob("*.py")) | {Path(__file__).resolve()}
+    for pattern in gen.inputs:
+        files |= {p for p in ROOT.glob(pattern) if p.is_file()}
+    h = hashlib.sha256(gen.command.encode())
+    for path in sorted(files):
+        h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def generator_of(block: str) -> Generator | None:
+    """The generator that makes ``block`` (``name`` or ``name-<part>``)."""
+    name = block
+    while name:
+        if name in GENERATORS:
+            return GENERATORS[name]
+        name = name.rpartition("-")[0]
+    return None
+
+
+def pages() -> list[Path]:
+    return sorted(DOCS.glob("*.md"))
+
+
+def blocks(text: str) -> list[re.Match[str]]:
+    return list(BLOCK.finditer(text))
+
+
+def stale() -> list[str]:
+    """``page: block (why)`` for every block that is unknown or whose inputs changed since."""
+    out = []
+    for page in pages():
+        for m in blocks(page.read_text(encoding="utf-8")):
+            gen = generator_of(m["name"])
+            if gen is None:
+                out.append(f"{page.name}: {m['name']} (no such generator)")
+            elif m["hash"] != inputs_hash(gen):
+                out.append(f"{page.name}: {m['name']} (stale: python scripts/make_docs.py --only {gen.name})")
+    return out
+
+
+def generate(gen: Generator) -> dict[str, str]:
+    with tempfile.TemporaryDirectory() as tmp:
+        return gen.make(Path(tmp))
+
+
+def write(gen: Generator) -> list[str]:
+    """Regenerate ``gen``'s blocks in every page; returns the ``page: block`` written."""
+    made = generate(gen)
+    digest = inputs_hash(gen)
+    written = []
+    for page in pages():
+        text = page.read_text(encoding="utf-8")
+
+        def fill(m: re.Match[str], page: Path = page) -> str:
+            if m["name"] not in made:
+                return m.group(0)
+            written.append(f"{page.name}: {m['name']}")
+            return f"<!-- generated: {m['name']} inputs={digest} -->\n{made[m['name']]}<!-- end -->"
+
+        new = BLOCK.sub(fill, text)
+        if new != text:
+            tmp = page.with_suffix(".md.tmp")
+            tmp.write_text(new, encoding="utf-8")
+            tmp.replace(page)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", action="append", choices=sorted(GENERATORS), help="regenerate only these")
+    ap.add_argument("--check", action="store_true", help="list stale blocks (exit 1 if any); runs nothing")
+    ap.add_argument("--list", action="store_true", help="list the generators")
+    args = ap.parse_args(argv)
+    if args.list:
+        for gen in GENERATORS.values():
+            where = sorted(
+                {
+                    f"{p.name}"
+                    for p in pages()
+                    for m in blocks(p.read_text(encoding="utf-8"))
+                    if generator_of(m["name"]) is gen
+                }
+            )
+            print(f"{gen.name}{' (cheap)' * gen.cheap}: {gen.command}  [{', '.join(where) or 'no page'}]")
+        return 0
+    if args.check:
+        problems = stale()
+        print("\n".join(problems) if problems else "every generated block is current")
+        return 1 if problems else 0
+    for name in args.only or list(GENERATORS):
+        t0 = time.perf_counter()
+        done = write(GENERATORS[name])
+        print(f"{name}: {', '.join(done) or 'no block in any page'} ({time.perf_counter() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
