@@ -182,7 +182,9 @@ class ClosedChain:
         names = [f"{lb.name}.{j}" for lb in mech.limbs for j in lb.joint_names]
         task_dof = None if mech.tool is not None else (3 if mech.task_normal is None else 2)
         q0 = np.concatenate([lb.home for lb in mech.limbs])
-        return count_mobility(lambda q: self._evaluate(q, None), q0, names, self.actuated_idx, task_dof)
+        return count_mobility(
+            lambda q: self._evaluate(q, None), q0, names, [int(i) for i in self.actuated_idx], task_dof
+        )
 
     def _home_mismatch(self, q0: np.ndarray) -> PlatformMismatchError:
         """The largest gap at ``q0``: a limb's platform frame, or an internal loop."""
