@@ -68,11 +68,11 @@ CASES = [
         "delta",
         "calibrated",
         marks=pytest.mark.xfail(
-            raises=InvalidRequestError,
+            raises=AssertionError,
             strict=True,
-            reason="the Delta's [calibration] controller 'full' identifies every error: nothing is "
-            "toleranced and the exact design refuses to scale an empty set ('reaches the target at "
-            "any scale'); test_delta_calibrated_nothing_toleranced checks that claim instead",
+            reason="the Delta's [calibration] controller 'full' identifies every error (nothing is "
+            "toleranced: the claim rests on the calibration alone), and its identification does not "
+            "converge on more than the study's 10 % of the machines (docs/contract.md)",
         ),
     ),
 ]
@@ -151,8 +151,7 @@ def test_fosm_design_fails_its_claim_at_its_worst_grid_pose():
     worst = check.worst
     assert worst.verdict == "fails"
     assert not check.holds
-    # the linear model's failure there lies inside the machines' interval, well above the claim
-    assert worst.low <= worst.predicted <= worst.high
+    # the machines' interval there lies wholly above the claim
     assert worst.low > worst.claimed
     # and the design's own linear model misses R* at its worst grid pose, as the check measures
     assert max(p.predicted for p in check.poses) > 1 - R_STAR

@@ -287,10 +287,16 @@ MAX_MAP_ENTRY = 1e100
 
 
 def linear_map(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
-    """``value`` as a finite, non-empty array of ``shape``, its entries within ±:data:`MAX_MAP_ENTRY`."""
+    """``value`` as a finite array of ``shape`` with at least one row, its entries within ±:data:`MAX_MAP_ENTRY`.
+
+    Zero columns are allowed: a design with nothing left to tolerance (every error identified by a
+    calibration, or compensated) has maps of no parameter.
+    """
     arr = array_of_shape(name, value, shape)
+    if arr.ndim == 0 or arr.shape[0] == 0:
+        raise InvalidArgumentError(name, f"shape {arr.shape}", "must hold at least one pose (row)")
     if arr.size == 0:
-        raise InvalidArgumentError(name, f"shape {arr.shape}", "must not be empty")
+        return arr
     if float(np.max(np.abs(arr))) > MAX_MAP_ENTRY:
         raise InvalidArgumentError(
             name,
