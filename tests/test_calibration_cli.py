@@ -366,6 +366,22 @@ def test_tolerances_of_this_robot_are_read_at_the_design_beta(tmp_path):
     assert "FOSM design-β tolerances" in source
 
 
+def test_tolerances_of_a_real_allocation_are_read(tmp_path):
+    """allocate's own allocation.json (a non-toleranced parameter's tolerance is null) is read whole."""
+    from pkmtol.calibration.tolerance_file import read_tolerances
+
+    out = tmp_path / "alloc"
+    args = ["allocate", str(SEED), "--samples", "500", "--verification-poses", "50", "--exact-samples", "0"]
+    assert main([*args, "--no-figures", "--no-progress", "--out", str(out)]) == 0
+    doc = json.loads((out / "allocation.json").read_text())
+    assert any(row["tolerance"] is None for row in doc["parameters"])  # the format this test is about
+    pset = parameter_set(load_mechanism(SEED), doc["parameter_set"])
+    tol, source = read_tolerances(out / "allocation.json", "r2rps_ups", pset, CalibrationSettings())
+    design = dict(zip(doc["method_design"]["parameters"], doc["method_design"]["tolerance"], strict=True))
+    assert {pset.names[i]: tol[i] for i in np.flatnonzero(np.isfinite(tol))} == pytest.approx(design)
+    assert "'exact' design" in source
+
+
 @pytest.mark.parametrize(
     ("changes", "needle"),
     [

@@ -68,6 +68,8 @@ def read_tolerances(
         if not isinstance(row, dict) or not isinstance(row.get("name"), str):
             raise MechanismFormatError(path, f"parameters[{i}]", "expected an object with a 'name'")
         t = row.get("tolerance")
+        if t is None:  # a parameter the allocation does not tolerance (compensatable, absorbed)
+            t = [None] * len(betas)
         if not isinstance(t, list) or len(t) != len(betas) or not all(v is None or _is_number(v) for v in t):
             raise MechanismFormatError(
                 path, f"parameters[{i}].tolerance", f"expected a list of {len(betas)} numbers (or null)"
