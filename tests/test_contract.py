@@ -19,7 +19,7 @@ from pkmtol.calibration.machine import Machine
 from pkmtol.design.contract import VERDICTS, _mechanism_settings, _pose_check, check_contract, machine_sigma
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.design.reliability import reliability_fosm
-from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
+from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.model.loader import load_mechanism
 from pkmtol.statistics import wilson_interval
 

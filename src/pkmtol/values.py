@@ -287,7 +287,7 @@ MAX_MAP_ENTRY = 1e100
 
 
 def linear_map(name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
-    """``value`` as a finite array of ``shape`` with at least one row, its entries within ±:data:`MAX_MAP_ENTRY`.
+    """``value`` as a finite array of ``shape``, at least one row, entries within ±:data:`MAX_MAP_ENTRY`.
 
     Zero columns are allowed: a design with nothing left to tolerance (every error identified by a
     calibration, or compensated) has maps of no parameter.
