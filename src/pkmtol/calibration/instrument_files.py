@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from pkmtol.calibration.instruments.base import Instrument
-from pkmtol.calibration.measurement_files import ANGLE, LENGTH, actuator_columns, read_measurements
+from pkmtol.calibration.measurement_files import ANGLE, LENGTH, actuator_columns, csv_rows, read_measurements
 from pkmtol.exceptions import MeasurementFileError
 from pkmtol.model.mechanism import Mechanism
 
@@ -230,20 +230,7 @@ def read_instrument_measurements(
 
 
 def _rows(path: Path) -> list[tuple[int, list[str]]]:
-    if path.is_dir():
-        raise MeasurementFileError(path, 0, "", "is a folder; give the measurement CSV file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError as err:
-        raise MeasurementFileError(path, 0, "", "file not found") from err
-    except UnicodeDecodeError as err:
-        raise MeasurementFileError(path, 0, "", f"not UTF-8 text ({err.reason} at byte {err.start})") from err
-    except OSError as err:
-        raise MeasurementFileError(path, 0, "", f"cannot be read ({err.strerror})") from err
-    try:
-        rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text))) if any(c.strip() for c in r)]
-    except csv.Error as err:
-        raise MeasurementFileError(path, 0, "", f"not a CSV file ({err})") from err
+    rows = csv_rows(path)
     if len(rows) < 2:
         raise MeasurementFileError(path, 0, "", "the file needs a header row and at least one measurement")
     return rows

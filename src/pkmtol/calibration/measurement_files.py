@@ -139,7 +139,7 @@ def read_measurements(path: Path | str, mechanism: Mechanism, n_targets: int) ->
 
 
 def _read(path: Path, mechanism: Mechanism, n_targets: int) -> Measurements:
-    rows = _rows(path)
+    rows = csv_rows(path)
     if not rows:
         raise MeasurementFileError(path, 0, "", "the file is empty; it needs a header row and measurements")
     header_line, header = rows[0]
@@ -334,8 +334,12 @@ def _group_rows(U: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rows(path: Path) -> list[tuple[int, list[str]]]:
-    """The non-empty CSV rows of ``path`` with their 1-based line numbers."""
+def csv_rows(path: Path) -> list[tuple[int, list[str]]]:
+    """The non-empty CSV rows of ``path`` with their 1-based line numbers (every measurement format's reader).
+
+    Raises:
+        MeasurementFileError: a folder, a missing or unreadable file, not UTF-8, not CSV.
+    """
     if path.is_dir():
         raise MeasurementFileError(path, 0, "", "is a folder; give the measurement CSV file")
     try:
