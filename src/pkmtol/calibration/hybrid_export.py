@@ -19,7 +19,13 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.calibration.urdf_export import calibrated_toml, calibrated_urdfs
+from pkmtol.calibration.urdf_export import (
+    calibrated_toml,
+    calibrated_urdfs,
+    joint_motion,
+    joint_origin,
+    set_joint_origin,
+)
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.error_model.tool_chain import HybridParameterSet
 from pkmtol.exceptions import CalibrationError
@@ -68,7 +74,9 @@ def tool_urdf(tool: Tool, eps: np.ndarray, offsets: np.ndarray) -> str:
         joint = joints.get(name)
         if joint is None:
             raise CalibrationError(f"the tool chain: joint '{name}' is not in {path.name}")
-        _set_origin(joint, _origin(joint) * pin.exp6(pin.Motion(eps[k])) * _motion(joint, float(offsets[k])))
+        set_joint_origin(
+            joint, joint_origin(joint) * pin.exp6(pin.Motion(eps[k])) * joint_motion(joint, float(offsets[k]))
+        )
     nose = tool.nose_name
     shift = pin.SE3(np.eye(3), np.array([0.0, 0.0, tool.length_m]))
     link = ET.SubElement(root, "link", {"name": nose + CALIBRATED_NOSE})
@@ -76,7 +84,7 @@ def tool_urdf(tool: Tool, eps: np.ndarray, offsets: np.ndarray) -> str:
     fixed = ET.SubElement(root, "joint", {"name": nose + "_tcp_calibration", "type": "fixed"})
     ET.SubElement(fixed, "parent", {"link": nose})
     ET.SubElement(fixed, "child", {"link": nose + CALIBRATED_NOSE})
-    _set_origin(fixed, shift * pin.exp6(pin.Motion(eps[tool.nq])) * shift.inverse())
+    set_joint_origin(fixed, shift * pin.exp6(pin.Motion(eps[tool.nq])) * shift.inverse())
     ET.indent(root, "  ")
     return (
         '<?xml version="1.0"?>\n<!-- calibrated by pkmtol calibrate: joint origins and the TCP frame '
@@ -118,29 +126,3 @@ def _tool_tables(mechanism: Mechanism, tool: Tool) -> str:
 
 def _list(values: object) -> str:
     return "[" + ", ".join(repr(float(v) + 0.0) for v in np.asarray(values, dtype=float).ravel()) + "]"
-
-
-def _origin(joint: ET.Element) -> pin.SE3:
-    o = joint.find("origin")
-    xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
-    rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
-    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
-
-
-def _set_origin(joint: ET.Element, placement: pin.SE3) -> None:
-    o = joint.find("origin")
-    if o is None:
-        o = ET.Element("origin")
-        joint.insert(0, o)
-    o.set("xyz", " ".join(repr(float(v)) for v in placement.translation))
-    o.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(placement.rotation)))
-
-
-def _motion(joint: ET.Element, value: float) -> pin.SE3:
-    axis_el = joint.find("axis")
-    text = axis_el.get("xyz", "1 0 0") if axis_el is not None else "1 0 0"
-    axis = np.array([float(v) for v in text.split()])
-    axis = axis / np.linalg.norm(axis)
-    if joint.get("type") == "prismatic":
-        return pin.SE3(np.eye(3), axis * value)
-    return pin.SE3(pin.exp3(axis * value), np.zeros(3))

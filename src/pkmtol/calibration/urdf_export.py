@@ -23,14 +23,16 @@ from pkmtol.exceptions import CalibrationError
 from pkmtol.model.mechanism import Mechanism
 
 
-def _origin(joint: ET.Element) -> pin.SE3:
+def joint_origin(joint: ET.Element) -> pin.SE3:
+    """A URDF joint's ``<origin>`` as a placement (identity when absent)."""
     o = joint.find("origin")
     xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
     rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
 
 
-def _set_origin(joint: ET.Element, placement: pin.SE3) -> None:
+def set_joint_origin(joint: ET.Element, placement: pin.SE3) -> None:
+    """Write ``placement`` as the joint's ``<origin>`` (added when absent)."""
     o = joint.find("origin")
     if o is None:
         o = ET.Element("origin")
@@ -40,7 +42,8 @@ def _set_origin(joint: ET.Element, placement: pin.SE3) -> None:
     o.set("rpy", " ".join(repr(float(v)) for v in rpy))
 
 
-def _joint_motion(joint: ET.Element, value: float) -> pin.SE3:
+def joint_motion(joint: ET.Element, value: float) -> pin.SE3:
+    """The motion of a 1-DOF revolute or prismatic URDF joint at ``value`` [rad or m]."""
     axis_el = joint.find("axis")
     axis = np.array(
         [float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None else "1 0 0").split()]
@@ -82,8 +85,8 @@ def calibrated_urdfs(mechanism: Mechanism, pset: ParameterSet, estimate: np.ndar
             joint = joints.get(name)
             if joint is None:
                 raise CalibrationError(f"limb '{limb.name}': joint '{name}' is not in {path.name}")
-            placement = _origin(joint) * pin.exp6(e[k]) * _joint_motion(joint, float(dq[k]))
-            _set_origin(joint, placement)
+            placement = joint_origin(joint) * pin.exp6(e[k]) * joint_motion(joint, float(dq[k]))
+            set_joint_origin(joint, placement)
         attach = joints.get(limb.attach_name)
         if attach is None:
             if np.any(e[limb.nq] != 0.0):
@@ -93,20 +96,20 @@ def calibrated_urdfs(mechanism: Mechanism, pset: ParameterSet, estimate: np.ndar
                 )
         else:
             delta = pin.exp6(e[limb.nq])
-            _set_origin(attach, _origin(attach) * delta)
+            set_joint_origin(attach, joint_origin(attach) * delta)
             # the attachment error moves the platform frame only (pkmtol's model): links fixed below
             # the platform link (a loop's socket) keep their place
             below = str(_child(attach))
             for j in joints.values():
                 parent = j.find("parent")
                 if j.get("type") == "fixed" and parent is not None and parent.get("link") == below:
-                    _set_origin(j, delta.inverse() * _origin(j))
+                    set_joint_origin(j, delta.inverse() * joint_origin(j))
         for k, lp in enumerate(limb.loops):  # a loop's error: the fixed joint of its frame b's link
             fixed = [
                 j for j in joints.values() if j.get("type") == "fixed" and _child(j) == lp.frame_names[1]
             ]
             if fixed:
-                _set_origin(fixed[0], _origin(fixed[0]) * pin.exp6(e[limb.nq + 1 + k]))
+                set_joint_origin(fixed[0], joint_origin(fixed[0]) * pin.exp6(e[limb.nq + 1 + k]))
             elif np.any(e[limb.nq + 1 + k] != 0.0):
                 raise CalibrationError(
                     f"limb '{limb.name}': loop '{lp.name}''s frame '{lp.frame_names[1]}' is not a link "
