@@ -218,6 +218,24 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
     reached = [p.q for p in points if p.q is not None]
     q_min = np.min(reached, axis=0) if reached else np.full(home_q.size, np.nan)
     q_max = np.max(reached, axis=0) if reached else np.full(home_q.size, np.nan)
+    limbs = _limb_reports(mechanism, chain, home_q, q_min, q_max)
+    return CheckReport(mechanism, limbs, home_q, closure_rank, tuple(points), tool)
+
+
+def _actuation_report(
+    mechanism: Mechanism, chain: ClosedChain, closure_rank: int, problems: tuple[str, ...]
+) -> CheckReport:
+    """The report of a mechanism whose actuation is wrong: structure only, at the TOML's home."""
+    home_q = np.concatenate([lb.home for lb in mechanism.limbs])
+    unsolved = np.full(home_q.size, np.nan)  # no grid was solved: no joint ranges to report
+    limbs = _limb_reports(mechanism, chain, home_q, unsolved, unsolved)
+    return CheckReport(mechanism, limbs, home_q, closure_rank, (), None, problems)
+
+
+def _limb_reports(
+    mechanism: Mechanism, chain: ClosedChain, home_q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray
+) -> tuple[LimbReport, ...]:
+    """Each limb's joints (limits, the grid's range ``q_min``–``q_max``) and its rank at ``home_q``."""
     limbs = []
     for i, limb in enumerate(mechanism.limbs):
         k0 = int(chain.offsets[i])
@@ -235,32 +253,7 @@ def check_mechanism(mechanism: Mechanism, progress: bool = False) -> CheckReport
         )
         rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
         limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
-    return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, tuple(points), tool)
-
-
-def _actuation_report(
-    mechanism: Mechanism, chain: ClosedChain, closure_rank: int, problems: tuple[str, ...]
-) -> CheckReport:
-    """The report of a mechanism whose actuation is wrong: structure only, at the TOML's home."""
-    home_q = np.concatenate([lb.home for lb in mechanism.limbs])
-    limbs = []
-    for i, limb in enumerate(mechanism.limbs):
-        k0 = int(chain.offsets[i])
-        joints = tuple(
-            JointReport(
-                name=name,
-                kind=kind,
-                actuated=j in limb.actuated,
-                lower=float(limb.model.lowerPositionLimit[j]),
-                upper=float(limb.model.upperPositionLimit[j]),
-                grid_min=float("nan"),
-                grid_max=float("nan"),
-            )
-            for j, (name, kind) in enumerate(zip(limb.joint_names, limb.joint_kinds, strict=True))
-        )
-        rank = _rank(limb_twists(limb, home_q[k0 : k0 + limb.nq]))
-        limbs.append(LimbReport(limb.name, limb.urdf_path, joints, rank, 6 - rank))
-    return CheckReport(mechanism, tuple(limbs), home_q, closure_rank, (), None, problems)
+    return tuple(limbs)
 
 
 def _hybrid_points(
