@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import pytest
 
+import pkmtol  # noqa: F401  (first, so that its one-BLAS-thread default is set before numpy loads)
+
 #: Test modules whose every test runs in the "contract" xdist group.
 CONTRACT_MODULES = ("test_contract.py",)
 

@@ -88,7 +88,7 @@ def test_unconverged_machines_are_named_and_left_out(seed, monkeypatch):
 
 
 def test_a_study_where_many_machines_do_not_converge_fails(seed, monkeypatch):
-    monkeypatch.setattr("pkmtol.calibration.identification.MAX_ITERATIONS", 1)
+    monkeypatch.setattr("pkmtol.calibration.gauss_newton.MAX_ITERATIONS", 1)
     with pytest.raises(CalibrationError, match=r"did not converge \(#0, #1"):
         _study(seed, 4)
 

@@ -78,11 +78,6 @@ def _exact_chi2_offered(mech, pset, plan, inst, y, res):
     return (r0 @ r0 - np.sum((r0 - J @ step) ** 2)) / plan.settings.noise_m**2
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Gauss–Newton on the frozen nominal Jacobian stalls on the Delta's ill-conditioned full "
-    "plan (docs/contract.md): the known defect this test pins",
-)
 def test_noisy_delta_identification_converges_to_the_least_squares_optimum(delta_plan):
     mech, pset, classes, plan = delta_plan
     assert plan.ident.base.size == 53 and len(plan.maps) == 40

@@ -20,6 +20,16 @@ Importing the package is cheap: a name of :data:`__all__` imports its module on 
 from __future__ import annotations
 
 import importlib
+import os
+import sys
+
+# One BLAS thread per process, unless the caller chose: pkmtol's matrices are small (a few hundred
+# rows), so threads buy nothing, and on a loaded machine OpenBLAS's spinning threads made a 120×53
+# SVD 100× slower (0.1 s instead of 1 ms; docs/scale.md). Parallel work is spread over processes
+# (the executor). The variables only act before numpy is first imported.
+if "numpy" not in sys.modules:
+    for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the names as static tools see them; at run time they load on first use
