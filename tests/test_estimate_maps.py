@@ -44,11 +44,8 @@ def _fd_twists(mech, pset, machine, commands, q, h=1e-7):
             d = machine.delta.copy()
             d[j] += sign * h
             s = solved_poses(Machine(mech, pset, d), commands, sols.q)
-            cols.append(
-                np.array(
-                    [pose_error_twist(base[k], pin.SE3(s.rotation[k], s.translation[k])) for k in range(len(base))]
-                )
-            )
+            moved = [pin.SE3(s.rotation[k], s.translation[k]) for k in range(len(base))]
+            cols.append(np.array([pose_error_twist(b, m) for b, m in zip(base, moved, strict=True)]))
         out[:, :, j] = (cols[0] - cols[1]) / (2 * h)
     return sols, out
 
