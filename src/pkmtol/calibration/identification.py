@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from pkmtol.calibration.estimate_maps import twist_maps_at
-from pkmtol.calibration.gauss_newton import Identification, Rows, gauss_newton, solved_poses
+from pkmtol.calibration.gauss_newton import EstimateRows, Identification, Rows, gauss_newton, solved_poses
 from pkmtol.calibration.identifiability import Identifiability
 from pkmtol.calibration.instruments.base import Instrument
 from pkmtol.calibration.instruments.tracker import TrackerPoints
@@ -126,6 +126,7 @@ def identify(
         np.zeros((H.shape[0], 0)),
         np.ones(H.shape[0]),
         prior_sigma,
+        at_estimate=rows_at_estimate(tracker, np.zeros(N, dtype=int)),
     )
     return _reshaped(out, (N, targets.shape[0], 3))
 
@@ -172,14 +173,6 @@ def identify_with(
         H = np.einsum("kra,kan->krn", rows, maps.measurement_twist).reshape(N * r, -1)
         return H, inst.nuisance_rows(o, R, st, pi).reshape(N * r, -1)
 
-    def rows_at_estimate(machine: Machine, sols: Solutions, pi: np.ndarray) -> Rows | None:
-        twist = twist_maps_at(machine, sols) if maps.measured_twist is None else None
-        if twist is None:
-            return None
-        rows = inst.twist_rows(sols.translation, sols.rotation, st, pi)
-        H_ = np.einsum("kra,kan->krn", rows, twist).reshape(N * r, -1)
-        return H_, inst.nuisance_rows(sols.translation, sols.rotation, st, pi).reshape(N * r, -1)
-
     H, Hp = rows_at(origin, rot, pi0)
     w = value_weights(inst, N, ident.noise_m)
     refresh = rows_at if inst.refresh_rows else None
@@ -198,8 +191,29 @@ def identify_with(
         prior_sigma,
         pi0,
         refresh,
-        rows_at_estimate,
+        # a tracker on a hybrid's spindle nose reads another body's twist: no analytic maps there yet
+        rows_at_estimate(inst, st) if maps.measured_twist is None else None,
     )
+
+
+def rows_at_estimate(inst: Instrument, stations: np.ndarray) -> EstimateRows:
+    """The Gauss–Newton rows of ``inst`` on the analytic Jacobian at an estimate.
+
+    The callback takes the estimate's machine, its solved poses and the nuisance parameters, and
+    returns ``(H, H_π)`` there (:func:`pkmtol.calibration.estimate_maps.twist_maps_at` times the
+    instrument's rows at those poses), or None where the maps are not available (a hybrid).
+    """
+
+    def rows(machine: Machine, sols: Solutions, pi: np.ndarray) -> Rows | None:
+        twist = twist_maps_at(machine, sols)
+        if twist is None:
+            return None
+        M = twist.shape[0] * inst.values_per_pose
+        twist_rows = inst.twist_rows(sols.translation, sols.rotation, stations, pi)
+        H = np.einsum("kra,kan->krn", twist_rows, twist).reshape(M, -1)
+        return H, inst.nuisance_rows(sols.translation, sols.rotation, stations, pi).reshape(M, -1)
+
+    return rows
 
 
 def _reshaped(out: Identification, shape: tuple[int, ...]) -> Identification:
