@@ -73,3 +73,26 @@ def test_twist_maps_at_the_nominal_machine_are_the_error_models():
     at = twist_maps_at(nominal, solved_poses(nominal, commands, q))
     assert at is not None
     np.testing.assert_allclose(at, np.array([s.twist_map for s in grid.separations]), atol=1e-9)
+
+
+@pytest.mark.parametrize(("robot", "kind"), [("r2rps_ups_wrist", "dh"), ("tricept_wrist", "urdf")])
+def test_hybrid_tcp_twist_at_the_estimate_matches_finite_differences(robot, kind):
+    """The whole machine's TCP twist (module shifted to the TCP, and the tool chain's columns)."""
+    from pkmtol.calibration.plan import candidate_pool
+    from pkmtol.calibration.settings import CalibrationSettings
+    from pkmtol.error_model.task import grid_sweep, machine_parameter_set
+
+    mech = load_mechanism(ROOT / "robots" / robot)
+    pset = machine_parameter_set(mech, kind)
+    grid = grid_sweep(mech, pset)
+    pool = candidate_pool(mech, pset, CalibrationSettings(candidates=30), grid=grid)
+    idx = np.linspace(0, len(pool) - 1, 4).astype(int)
+    commands, q = pool.commands[idx], pool.q[idx]
+    sig = np.where(np.array(pset.units) == "m", 1e-3, 5e-3)
+    machine = Machine(mech, pset, np.random.default_rng(2).standard_normal(len(pset)) * sig)
+    sols, fd = _fd_twists(mech, pset, machine, commands, q)
+    at = twist_maps_at(machine, sols)
+    assert at is not None and at.shape == fd.shape
+    scale = np.abs(fd).max()
+    assert np.abs(at - fd).max() <= 1e-6 * scale
+    assert np.abs(pool.twist[idx] - fd).max() > 1e-3 * scale  # the nominal TCP maps: visibly off

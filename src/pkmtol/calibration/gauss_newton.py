@@ -67,7 +67,8 @@ DAMPING = (1e-8, 1e-6, 1e-4, 1e-2)
 MAX_HALVINGS = 8
 #: A stop of the iteration is certified when a Gauss–Newton step on the Jacobian at the estimate
 #: would lower the χ² by at most this [σ_m²]: the estimate is then within √0.1 = 0.3 σ of the
-#: least-squares optimum along every direction, far inside its own spread.
+#: least-squares optimum along every direction, far inside its own spread. When the residuals exceed
+#: the noise (errors outside the controller model), σ_m² is replaced by the fit's reduced χ².
 CERTIFY_CHI2 = 0.1
 #: Certificates tried before the result is given as it stands (each continues the iteration on
 #: the Jacobian at the estimate when it fails).
@@ -239,6 +240,15 @@ def gauss_newton(
         """
         return bool(q_n) and shows_noise(c)
 
+    def certify_level(c: float) -> float:
+        """The cost decrease [m²] below which a stop is certified at cost ``c``.
+
+        :data:`CERTIFY_CHI2` σ_m², scaled by the reduced χ² when the residuals exceed the noise
+        (errors the controller model does not hold: the fit's own scatter is then the yardstick).
+        """
+        dof = max(measured.size - cols.size - q_n, 1)
+        return CERTIFY_CHI2 * max(ident.noise_m**2, c / dof)
+
     def shows_noise(c: float) -> bool:
         """Whether the residuals show the noise (whitened RMS ≥ :data:`NOISY` of σ_m)."""
         return bool(np.sqrt(c / max(measured.size, 1)) >= NOISY * ident.noise_m)
@@ -291,7 +301,7 @@ def gauss_newton(
         if exact_jacobian and jacobian_at_x and shows_noise(cost):
             # on the Jacobian at the estimate: stationary to CERTIFY_CHI2 (noise-free data go on
             # to STEP_TOLERANCE)
-            if float(np.sum((J_aug @ step) ** 2)) <= CERTIFY_CHI2 * ident.noise_m**2:
+            if float(np.sum((J_aug @ step) ** 2)) <= certify_level(cost):
                 converged = True
                 break
         accepted = resolved = False
@@ -313,7 +323,7 @@ def gauss_newton(
                     accepted, x_new = True, x + step
                     # stationary in the directions the data resolve: the step, damped only below
                     # LM_RESOLVED of the largest singular value, offered at most CERTIFY_CHI2
-                    resolved = damping <= LM_RESOLVED**2 and predicted <= CERTIFY_CHI2 * ident.noise_m**2
+                    resolved = damping <= LM_RESOLVED**2 and predicted <= certify_level(cost)
                     damping /= 10
                     break
                 damping = max(10 * damping, LM_START)
@@ -385,7 +395,7 @@ def gauss_newton(
                 certificates += 1
                 (J_aug, J_pinv), jacobian_at_x = system_now, True
                 chi2, exact_step = offered_chi2(x, J_aug, J_pinv)
-                if (chi2 <= CERTIFY_CHI2 and shows_noise(cost)) or np.max(
+                if (chi2 * ident.noise_m**2 <= certify_level(cost) and shows_noise(cost)) or np.max(
                     np.abs(exact_step) / all_scale
                 ) < STEP_TOLERANCE:
                     converged = True
@@ -397,7 +407,7 @@ def gauss_newton(
         elif certificates and jacobian_at_x:
             # no halving of the step on the Jacobian at the estimate lowers the cost: stationary
             # when that step offers less than CERTIFY_CHI2 (or nothing the solves can resolve)
-            converged = offered_chi2(x, J_aug, J_pinv)[0] <= CERTIFY_CHI2
+            converged = offered_chi2(x, J_aug, J_pinv)[0] * ident.noise_m**2 <= certify_level(cost)
         elif noisy(cost) and float(np.linalg.norm(J_aug @ full_step)) <= FIT_CHANGE * ident.noise_m:
             # at the optimum to the noise: the step the Jacobian offers would change the fitted
             # values by less than FIT_CHANGE σ in all (nuisance instruments only)
