@@ -227,9 +227,13 @@ def make_plan(
         labels = labels[np.argsort(first)]
         if count > labels.size:
             what = "circles" if inst.name == "ballbar" else "poses"
+            more = {
+                "ballbar": "give more stations_m or circle_planes",
+                "probe": "raise approach_directions (per sphere; on a plane artifact, touch points per face)",
+            }.get(inst.name, "raise candidates")
             raise InvalidRequestError(
                 f"{count} calibration {what} asked for, but the candidate pool has {labels.size}; "
-                f"lower --poses or raise candidates"
+                f"lower --poses or {more}"
             )
         members = [np.flatnonzero(groups == g) for g in labels]
         if how == "d-optimal":

@@ -284,8 +284,11 @@ def study_text(report: StudyReport, markdown: bool = False) -> str:
         _study_row(study.ideal),
         _study_row(study.ideal_linear),
     ]
+    blind = inst is not None and inst.nuisance_count > 0  # placement in K unseen (docs/instruments.md)
     for c in study.cases:
         rows += [_study_row(c.exact), _study_row(c.linear)]
+        if blind and c.registered is not None:
+            rows.append(_study_row(c.registered))
     out += [_table(rows, markdown), ""]
     rows = [
         [
