@@ -137,6 +137,12 @@ def test_bad_artifact_settings_are_named(kw, culprit):
         CalibrationSettings(instrument="probe", **kw)
 
 
+def test_sphere_centres_given_to_a_plane_artifact_are_refused(seed):
+    st = CalibrationSettings(instrument="probe", artifact="plane", stations_m=((0.0, 0.0, 1.0),))
+    with pytest.raises(InvalidRequestError, match="stations_m places the spheres"):
+        instrument_for(st, seed[0])
+
+
 def test_the_artifact_keys_of_the_table_are_read_and_checked(tmp_path):
     from pkmtol.calibration.settings import settings_from_table
 

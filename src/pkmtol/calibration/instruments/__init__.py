@@ -20,6 +20,7 @@ from pkmtol.calibration.instruments.plane import PlaneProbe, default_block
 from pkmtol.calibration.instruments.probe import SphereProbe
 from pkmtol.calibration.instruments.tracker import TrackerPoints
 from pkmtol.calibration.instruments.tracker6d import Tracker6D
+from pkmtol.exceptions import InvalidRequestError
 from pkmtol.model.mechanism import Mechanism
 
 if TYPE_CHECKING:
@@ -78,6 +79,11 @@ def instrument_for(settings: CalibrationSettings, mechanism: Mechanism) -> Instr
         length = settings.ballbar_length_m or 0.25 * r
         return Ballbar(p, circles, length, settings.circle_points, settings.noise_m)
     if settings.artifact == "plane":
+        if len(settings.stations_m):
+            raise InvalidRequestError(
+                "stations_m places the spheres of a sphere artifact; a plane artifact is the default "
+                "block, its faces chosen by artifact_faces: leave stations_m out, or use artifact = 'sphere'"
+            )
         faces = tuple(settings.artifact_faces)
         centres, normals, extents = default_block(task_geometry(mechanism), faces, settings.artifact_radius_m)
         return PlaneProbe(
