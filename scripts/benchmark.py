@@ -638,6 +638,7 @@ def instrument_rows(mech, pset, chain, args):  # noqa: ANN001, ANN201 - script h
         "tracker-6d": {"instrument": "tracker-6d"},
         "ballbar (5 circles × 10)": {"instrument": "ballbar", "poses": 5, "circle_points": 10},
         "probe": {"instrument": "probe"},
+        "probe, plane artifact": {"instrument": "probe", "artifact": "plane"},
     }
     rows = []
     for label, kw in cases.items():

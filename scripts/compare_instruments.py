@@ -4,7 +4,8 @@ For each robot and instrument: the plan (size, rank of the controller model, ran
 candidate pool), the study on exact kinematics (machines at the manufacturing σ and the FOSM
 tolerances of a quick allocation, calibrated by the instrument's D-optimal plan with the
 compensatable controller (or the full one where the row says so), held-out random poses: p99 of
-Δλ and of the tool-axis tilt), and the calibrated-mode allocation against the same instrument
+Δλ and of the tool-axis tilt in K, and p99 of Δλ once the workpiece is registered to each machine,
+:mod:`pkmtol.calibration.registration`), and the calibrated-mode allocation against the same instrument
 (`pkmtol allocate --compensation calibrated --instrument …`): the number of toleranced parameters
 and their cost under the default [cost] model, or the noise floor that makes any tolerance
 impossible.
@@ -52,6 +53,7 @@ ROWS = (
     ("tracker-6d, full controller", {"instrument": "tracker-6d", "controller": "full"}),
     ("ballbar (ISO 230-4 circles)", {"instrument": "ballbar"}),
     ("probe (sphere artifact)", {"instrument": "probe"}),
+    ("probe (plane artifact: 5 faces of a block)", {"instrument": "probe", "artifact": "plane"}),
 )
 MACHINES, HOLDOUT, SEED = 20, 100, 0
 BEGIN, END = "<!-- instruments-table:begin -->", "<!-- instruments-table:end -->"
@@ -104,6 +106,10 @@ def run() -> dict:
                     pool_rank=plan.pool_rank,
                     p99_dlambda_m=case.exact.quantile_m(0.99),
                     p99_tilt_rad=float(np.nanquantile(case.exact.tilt_rad, 0.99)),
+                    p99_registered_m=case.registered.quantile_m(0.99) if case.registered else None,
+                    p99_registered_tilt_rad=float(np.nanquantile(case.registered.tilt_rad, 0.99))
+                    if case.registered
+                    else None,
                     linear_valid=case.linear_valid,
                     unconverged=len(case.unconverged),
                     before_p99_m=rep.study.before.quantile_m(0.99),
@@ -147,8 +153,9 @@ def _um(x: float | None) -> str:
 def render(doc: dict) -> str:
     """The Markdown table of ``doc``."""
     lines = [
-        "| robot | instrument | plan | rank (pool) | p99 Δλ [µm] | p99 tilt [µrad] | toleranced | cost |",
-        "|---|---|---|---|---|---|---|---|",
+        "| robot | instrument | plan | rank (pool) | p99 Δλ [µm] | p99 tilt [µrad] "
+        "| p99 Δλ, part registered [µm] | toleranced | cost |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for robot, rows in doc["robots"].items():
         for r in rows:
@@ -159,7 +166,7 @@ def render(doc: dict) -> str:
                     if m
                     else "study failed"
                 )
-                study = [why, "-", "-", "-"]
+                study = [why, "-", "-", "-", "-"]
             else:
                 flag = "" if r["linear_valid"] else " ¹"
                 study = [
@@ -167,6 +174,7 @@ def render(doc: dict) -> str:
                     f"{r['rank']} of {r['parameters']} ({r['pool_rank']})",
                     _um(r["p99_dlambda_m"]) + flag,
                     _um(r["p99_tilt_rad"]),
+                    _um(r.get("p99_registered_m")),
                 ]
             if "allocation_error" in r:
                 alloc = [

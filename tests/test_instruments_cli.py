@@ -35,6 +35,7 @@ INSTRUMENTS = {
     "tracker-6d": ["--instrument", "tracker-6d"],
     "ballbar": ["--instrument", "ballbar"],
     "probe": ["--instrument", "probe"],
+    "probe-plane": ["--instrument", "probe", "--artifact", "plane"],
 }
 
 
@@ -53,6 +54,8 @@ def sessions(base, tmp_path_factory):
     out = {}
     for name, opts in INSTRUMENTS.items():
         kw = {"tracker_frame": "identify"} if name == "tracker-frame" else {"instrument": opts[1]}
+        if name == "probe-plane":
+            kw["artifact"] = "plane"
         settings = CalibrationSettings(candidates=60, **kw)
         plan = make_plan(
             mech, pset, classes, settings, candidate_pool(mech, pset, settings, chain, grid=grid)
@@ -65,7 +68,7 @@ def sessions(base, tmp_path_factory):
         true = Machine(mech, pset, delta)
         pi = inst.draw_nuisance(rng)
         commands = plan.maps.commands
-        if name == "probe":
+        if name.startswith("probe"):
             commands = trigger_commands(
                 true, inst, commands, plan.maps.q, plan.stations, pi, plan.maps.position_actuation()
             )
@@ -93,7 +96,7 @@ def test_instrument_round_trip_writes_loadable_calibrated_urdfs(base, sessions, 
     assert "nuisance parameter" in text and "base parameter" in text
     doc = json.loads((out / "identified.json").read_text())
     assert doc["converged"] and doc["rms_after_in_sigma"] < 1.5
-    if name in ("tracker-frame", "probe"):  # the identified transform is the drawn one
+    if name in ("tracker-frame", "probe", "probe-plane"):  # the identified transform is the drawn one
         est = np.array([p["value"] for p in doc["nuisance"]])
         assert len(est) == 6 and doc["transform"] is not None
     estimate = np.array([doc["estimate"][n] for n in pset.names])
@@ -166,6 +169,15 @@ BAD = {
         "station",
     ),
     ("probe", "too few touches"): (lambda ls: ls[:10], "fewer than the"),
+    ("probe-plane", "face out of range"): (
+        lambda ls: [ls[0], ls[1].rsplit(",", 1)[0] + ",5"] + ls[2:],
+        "not a station index 0…4 of the probe",
+    ),
+    ("probe-plane", "too few touches"): (lambda ls: ls[:10], "fewer than the"),
+    ("probe-plane", "unit wrong"): (
+        lambda ls: [ls[0].replace(" [mm]", " [deg]", 1)] + ls[1:],
+        "length unit",
+    ),
     ("probe", "empty"): (lambda ls: ls[:1], "at least one measurement"),
     ("probe", "outside limits"): (
         lambda ls: [ls[0], "0," + "5000.0," + ",".join(ls[1].split(",")[2:])] + ls[2:],

@@ -50,11 +50,23 @@ class PoseErrors:
         """
         a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
         nominal = np.einsum("kij,j->ki", rotations, a)
-        actual = np.empty_like(nominal)
-        for k, (rk, th) in enumerate(zip(rotations, self.rotation_rad, strict=True)):
-            actual[k] = pin.exp3(th) @ rk @ a if np.all(np.isfinite(th)) else np.nan
+        actual = _rotate(self.rotation_rad, nominal)
         cross = np.linalg.norm(np.cross(nominal, actual), axis=1)
         return np.arctan2(cross, np.einsum("ki,ki->k", nominal, actual))
+
+
+def _rotate(theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``exp3(θ_k) v_k`` for rotation vectors θ (m, 3) and vectors v (m, 3) (Rodrigues; NaN rows stay NaN)."""
+    angle = np.linalg.norm(theta, axis=1)
+    small = angle < 1e-8
+    safe = np.where(small, 1.0, angle)
+    k = theta / safe[:, None]
+    kxv = np.cross(k, v)
+    kv = np.einsum("ka,ka->k", k, v)
+    c, s = np.cos(angle), np.sin(angle)
+    out = v * c[:, None] + kxv * s[:, None] + k * (kv * (1.0 - c))[:, None]
+    # below 1e-8 rad: the first order, exact to 1e-16
+    return np.where(small[:, None], v + np.cross(theta, v), out)
 
 
 def pose_errors(

@@ -216,7 +216,7 @@ def make_plan(
     machine_w = (sys_pool.machine * sys_pool.weights[:, None]).reshape(len(pool), r, n)
     nuis_w = (sys_pool.nuisance * sys_pool.weights[:, None]).reshape(len(pool), r, -1)
     blocks = np.concatenate(
-        [machine_w[:, :, base] * scale[base][None, None, :], nuis_w / inst.nuisance_scale[None, None, :]],
+        [machine_w[:, :, base] * scale[base][None, None, :], nuis_w * inst.nuisance_scale[None, None, :]],
         axis=2,
     )
     count = settings.poses if poses is None else int(poses)
@@ -227,9 +227,13 @@ def make_plan(
         labels = labels[np.argsort(first)]
         if count > labels.size:
             what = "circles" if inst.name == "ballbar" else "poses"
+            more = {
+                "ballbar": "give more stations_m or circle_planes",
+                "probe": "raise approach_directions (per sphere; on a plane artifact, touch points per face)",
+            }.get(inst.name, "raise candidates")
             raise InvalidRequestError(
                 f"{count} calibration {what} asked for, but the candidate pool has {labels.size}; "
-                f"lower --poses or raise candidates"
+                f"lower --poses or {more}"
             )
         members = [np.flatnonzero(groups == g) for g in labels]
         if how == "d-optimal":
@@ -237,7 +241,12 @@ def make_plan(
             gb = np.zeros((labels.size, size * r, blocks.shape[2]))
             for i, m in enumerate(members):
                 gb[i, : len(m) * r] = blocks[m].reshape(-1, blocks.shape[2])
-            picked = d_optimal(gb, count, nuisance=inst.nuisance_count)
+            need = inst.required(pool.points_m, pool.station_index)
+            group_of = {int(g): i for i, g in enumerate(labels)}
+            fixed = np.unique([group_of[int(groups[k])] for k in need]).astype(int)
+            picked = d_optimal(
+                gb, count, fixed=fixed if fixed.size <= count else None, nuisance=inst.nuisance_count
+            )
         else:
             picked = random_subset(labels.size, count, np.random.default_rng(settings.seed + 7919 * count))
         chosen = np.concatenate([members[i] for i in picked])

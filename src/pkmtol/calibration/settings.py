@@ -39,6 +39,14 @@ CONTROLLERS = ("compensatable", "full")
 SELECTIONS = ("d-optimal", "random")
 #: The measurement models (docs/instruments.md).
 INSTRUMENTS = ("tracker", "tracker-multi", "tracker-6d", "ballbar", "probe")
+#: The probe's artifacts: a set of spheres, or the flat faces of a block (docs/instruments.md).
+ARTIFACTS = ("sphere", "plane")
+#: The plane artifact's faces by outward normal (``+z``: the top; the block stands on ``-z``).
+ARTIFACT_FACES = ("+z", "+x", "-x", "+y", "-y")
+#: Default effective radius of a probed sphere (12.7 mm sphere + 1 mm tip) and of the tip on a plane [m].
+ARTIFACT_RADIUS = {"sphere": 0.0137, "plane": 0.001}
+#: Default candidate approach directions per sphere, touch points per face of a plane artifact.
+ARTIFACT_TOUCHES = {"sphere": 24, "plane": 100}
 #: How a tracker's frame is known: registered to K before the session, or identified with the machine.
 TRACKER_FRAMES = ("registered", "identify")
 #: Per instrument: the default noise σ of its (first) value [m] and the default plan size (poses;
@@ -72,6 +80,8 @@ TABLE_KEYS = (
     "ballbar_length",
     "circle_planes",
     "circle_points",
+    "artifact",
+    "artifact_faces",
     "artifact_radius",
     "approach_directions",
     "tracker_on",
@@ -108,8 +118,13 @@ class CalibrationSettings:
             task space's radius).
         circle_planes: The planes of the ballbar circles about every centre (xy, yz, zx).
         circle_points: Readings per ballbar circle.
-        artifact_radius_m: The probed sphere's effective radius (sphere + stylus tip) [m].
-        approach_directions: Candidate approach directions per probed station.
+        artifact: The probe's artifact, ``sphere`` (spheres at ``stations_m``) or ``plane`` (the
+            flat faces of a block).
+        artifact_faces: The plane artifact's faces touched, by outward normal (:data:`ARTIFACT_FACES`).
+        artifact_radius_m: The probed sphere's effective radius (sphere + stylus tip), or on a
+            plane the stylus tip's radius [m] (NaN: 13.7 mm, 1 mm).
+        approach_directions: Candidate approach directions per probed sphere, or touch points
+            per face of a plane artifact (0: 24 per sphere, 100 per face).
     """
 
     targets_m: tuple[tuple[float, float, float], ...] = ()
@@ -130,8 +145,10 @@ class CalibrationSettings:
     ballbar_length_m: float = 0.0
     circle_planes: tuple[str, ...] = ("xy", "yz", "zx")
     circle_points: int = 36
-    artifact_radius_m: float = 0.0137
-    approach_directions: int = 24
+    artifact: str = "sphere"
+    artifact_faces: tuple[str, ...] = ARTIFACT_FACES
+    artifact_radius_m: float = float("nan")
+    approach_directions: int = 0
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
@@ -145,6 +162,20 @@ class CalibrationSettings:
             raise InvalidRequestError(
                 f"unknown tracker_frame {self.tracker_frame!r}; use one of {', '.join(TRACKER_FRAMES)}"
             )
+        if self.artifact not in ARTIFACTS:
+            raise InvalidRequestError(
+                f"unknown artifact {self.artifact!r}; use one of {', '.join(ARTIFACTS)}"
+            )
+        faces = [f for f in self.artifact_faces if f not in ARTIFACT_FACES]
+        if faces or not self.artifact_faces or len(set(self.artifact_faces)) != len(self.artifact_faces):
+            raise InvalidRequestError(
+                f"artifact_faces must be distinct faces of {', '.join(ARTIFACT_FACES)}; "
+                f"got {list(self.artifact_faces)!r}"
+            )
+        if isinstance(self.artifact_radius_m, float) and np.isnan(self.artifact_radius_m):
+            object.__setattr__(self, "artifact_radius_m", ARTIFACT_RADIUS[self.artifact])
+        if self.approach_directions == 0 and not isinstance(self.approach_directions, bool):
+            object.__setattr__(self, "approach_directions", ARTIFACT_TOUCHES[self.artifact])
         noise, poses = INSTRUMENT_DEFAULTS[self.instrument]
         if isinstance(self.noise_m, float) and np.isnan(self.noise_m):
             object.__setattr__(self, "noise_m", noise)
@@ -321,11 +352,17 @@ def _read(key: str, value: Any) -> dict[str, Any]:
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             raise InvalidRequestError(f"expected a list of [x, y, z] points in metres, got {value!r}")
         return {"stations_m": tuple(tuple(float(c) for c in p) for p in pts)}
+    if key == "artifact_faces":
+        if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
+            raise InvalidRequestError(
+                f"expected a list of faces ({', '.join(ARTIFACT_FACES)}), got {value!r}"
+            )
+        return {"artifact_faces": tuple(value)}
     if key == "circle_planes":
         if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
             raise InvalidRequestError(f"expected a list of planes (xy, yz, zx), got {value!r}")
         return {"circle_planes": tuple(value)}
-    if key in ("instrument", "tracker_frame", "tracker_on") and not isinstance(value, str):
+    if key in ("instrument", "tracker_frame", "tracker_on", "artifact") and not isinstance(value, str):
         raise InvalidRequestError(f"expected a name, got {value!r}")
     if key == "tracker_on":  # a hybrid's: read from the mechanism's table (error_model.tool_sweep.tracker_on)
         if value not in TRACKER_POINTS:

@@ -43,6 +43,7 @@ from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import PoseMaps
 from pkmtol.calibration.plan import CalibrationPlan
 from pkmtol.calibration.postcal import calibrated_maps
+from pkmtol.calibration.registration import registered
 from pkmtol.error_model.compensation import AccuracyMaps
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.exceptions import CalibrationError, IdentificationError, KinematicsError
@@ -370,6 +371,9 @@ class CaseResult:
         unconverged: ``(machine index, why)`` of every machine left out of this case's rows.
         plan_spread: With plans per machine: per plan, ``(mean Δλ [m], share beyond Δλ*)`` of the
             exact errors of the machine it calibrated; empty otherwise.
+        registered: The exact errors once the workpiece is registered to each machine (its best
+            rigid motion over the held-out poses removed, :mod:`.registration`): what an
+            instrument that cannot see the machine's placement in K leaves at the part.
     """
 
     case: StudyCase
@@ -381,6 +385,7 @@ class CaseResult:
     linear_exact_difference_m: float
     unconverged: tuple[tuple[int, str], ...] = ()
     plan_spread: tuple[tuple[float, float], ...] = ()
+    registered: ErrorSummary | None = None
 
     @property
     def linear_gap_m(self) -> float:
@@ -475,6 +480,10 @@ def collect(ctx: StudyContext, outcomes: list[MachineOutcome]) -> StudyResult:
             )
         good = [co for co in outs if co.converged]
         exact = summary(f"after calibration: {cc.case.label}", [co.errors for co in good])
+        reg = summary(
+            f"after calibration, workpiece registered: {cc.case.label}",
+            [registered(co.errors, ho.points_m) for co in good],
+        )
         lin_p = np.concatenate([co.linear_position_m for co in good])
         lin_r = np.concatenate([co.linear_rotation_rad for co in good])
         lin_errors = PoseErrors(position_m=lin_p, rotation_rad=lin_r, solved=np.ones(len(lin_p), dtype=bool))
@@ -508,6 +517,7 @@ def collect(ctx: StudyContext, outcomes: list[MachineOutcome]) -> StudyResult:
                 linear_exact_difference_m=float(np.nanmax(diff)) if np.isfinite(diff).any() else float("nan"),
                 unconverged=bad,
                 plan_spread=spread,
+                registered=reg,
             )
         )
     return StudyResult(

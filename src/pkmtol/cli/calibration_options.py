@@ -7,6 +7,7 @@ import dataclasses
 from pathlib import Path
 
 from pkmtol.calibration.settings import (
+    ARTIFACTS,
     CONTROLLERS,
     INSTRUMENTS,
     SELECTIONS,
@@ -28,7 +29,14 @@ def add_plan_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="measurement model: tracker (P's position, default), tracker-multi (several reflectors), "
         "tracker-6d (position and orientation), ballbar (ISO 230-4 circles), probe (touches on a "
-        "sphere artifact); docs/instruments.md",
+        "sphere or plane artifact); docs/instruments.md",
+    )
+    g.add_argument(
+        "--artifact",
+        choices=ARTIFACTS,
+        default=None,
+        help="the probe's artifact: sphere (spheres at [calibration] stations_m, default) or plane "
+        "(the flat faces of a block, [calibration] artifact_faces)",
     )
     g.add_argument(
         "--tracker-frame",
@@ -68,6 +76,7 @@ def add_plan_options(p: argparse.ArgumentParser) -> None:
 OPTION_OF_SETTING = {
     "instrument": "--instrument",
     "tracker_frame": "--tracker-frame",
+    "artifact": "--artifact",
     "poses": "--poses",
     "selection": "--selection",
     "controller": "--controller",
@@ -98,6 +107,7 @@ def plan_settings(mech: Mechanism, args: argparse.Namespace, seed: int | None = 
     overrides = {
         "instrument": getattr(args, "instrument", None),
         "tracker_frame": getattr(args, "tracker_frame", None),
+        "artifact": getattr(args, "artifact", None),
         "poses": args.poses,
         "selection": args.selection,
         "controller": controller,
@@ -126,6 +136,7 @@ def plan_settings(mech: Mechanism, args: argparse.Namespace, seed: int | None = 
 PLAN_OPTIONS = {
     "instrument": "--instrument",
     "tracker_frame": "--tracker-frame",
+    "artifact": "--artifact",
     "poses": "--poses",
     "selection": "--selection",
     "controller": "--controller",

@@ -86,6 +86,8 @@ KNOWN_KEYS: dict[str, frozenset[str]] = {
             "ballbar_length",
             "circle_planes",
             "circle_points",
+            "artifact",
+            "artifact_faces",
             "artifact_radius",
             "approach_directions",
             "tracker_on",

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from pkmtol.calibration.identifiability import Identifiability
+from pkmtol.calibration.instruments.base import Instrument, unseen_nuisance
 from pkmtol.calibration.real_data import RealCalibration
 from pkmtol.calibration.study import LINEAR_WARNING, ErrorSummary
 from pkmtol.calibration.workflow import PlanReport, PlanSummary, StudyReport
@@ -92,6 +93,17 @@ def _plan_row(s: PlanSummary) -> list[str]:
     ]
 
 
+def unseen_lines(inst: Instrument, rows: np.ndarray | None) -> list[str]:
+    """A line naming the instrument's nuisance directions the poses do not fix (none: no line)."""
+    unseen = [] if rows is None or not inst.nuisance_count else unseen_nuisance(inst, rows)
+    if not unseen:
+        return []
+    return [
+        f"the poses do not fix {len(unseen)} of the {inst.name}'s {inst.nuisance_count} nuisance "
+        f"directions: {'; '.join(unseen)}; the machine's rigid motion along them is not identified either"
+    ]
+
+
 def plan_text(report: PlanReport, markdown: bool = False) -> str:
     """The plan, its identifiability, and how it compares with random plans of its size."""
     plan, st = report.plan, report.plan.settings
@@ -109,6 +121,7 @@ def plan_text(report: PlanReport, markdown: bool = False) -> str:
             + (", MAP prior" if st.prior else ", least squares"),
             "instrument " + plan.instrument.describe(),
             f"rank over the whole candidate pool: {plan.pool_rank}",
+            *unseen_lines(plan.instrument, plan.system.nuisance if plan.system is not None else None),
             "",
         ]
     out = head + identifiability_lines(plan.ident, markdown)
@@ -271,8 +284,11 @@ def study_text(report: StudyReport, markdown: bool = False) -> str:
         _study_row(study.ideal),
         _study_row(study.ideal_linear),
     ]
+    blind = inst is not None and inst.nuisance_count > 0  # placement in K unseen (docs/instruments.md)
     for c in study.cases:
         rows += [_study_row(c.exact), _study_row(c.linear)]
+        if blind and c.registered is not None:
+            rows.append(_study_row(c.registered))
     out += [_table(rows, markdown), ""]
     rows = [
         [

@@ -17,7 +17,12 @@ import numpy as np
 import pinocchio as pin
 
 from pkmtol.calibration.instrument_data import InstrumentCalibration
-from pkmtol.present.calibration_tables import identifiability_json, identifiability_lines, markdown_table
+from pkmtol.present.calibration_tables import (
+    identifiability_json,
+    identifiability_lines,
+    markdown_table,
+    unseen_lines,
+)
 from pkmtol.present.tables import text_table
 
 
@@ -76,6 +81,7 @@ def instrument_text(cal: InstrumentCalibration, markdown: bool = False) -> str:
                 f"rotation vector [{w[0]:.6f}, {w[1]:.6f}, {w[2]:.6f}] deg",
                 "",
             ]
+    out += unseen_lines(inst, cal.system.nuisance)
     out += identifiability_lines(cal.ident, markdown)
     res = np.abs(r.residuals_m).reshape(len(m.commands), -1).max(axis=1)
     worst = np.argsort(-res)[:5]

@@ -1,7 +1,8 @@
 """The measurement models of a calibration, one per instrument a shop may own (docs/instruments.md).
 
 ``tracker`` (P's position), ``tracker-multi`` (K reflectors: the pose), ``tracker-6d`` (position and
-orientation), ``ballbar`` (ISO 230-4 circles), ``probe`` (touches on a sphere artifact). Each is a
+orientation), ``ballbar`` (ISO 230-4 circles), ``probe`` (touches on a sphere artifact, or on the
+faces of a plane artifact, :mod:`.plane`). Each is a
 small class (:class:`~.base.Instrument`); :func:`instrument_for` builds the one a
 :class:`~pkmtol.calibration.settings.CalibrationSettings` names.
 """
@@ -15,9 +16,11 @@ import numpy as np
 from pkmtol.calibration.instruments.ballbar import Ballbar
 from pkmtol.calibration.instruments.base import Candidates, Instrument
 from pkmtol.calibration.instruments.frame import TrackerFrame
+from pkmtol.calibration.instruments.plane import PlaneProbe, default_block
 from pkmtol.calibration.instruments.probe import SphereProbe
 from pkmtol.calibration.instruments.tracker import TrackerPoints
 from pkmtol.calibration.instruments.tracker6d import Tracker6D
+from pkmtol.exceptions import InvalidRequestError
 from pkmtol.model.mechanism import Mechanism
 
 if TYPE_CHECKING:
@@ -75,6 +78,24 @@ def instrument_for(settings: CalibrationSettings, mechanism: Mechanism) -> Instr
         circles = tuple((c, plane) for c in centres for plane in settings.circle_planes)
         length = settings.ballbar_length_m or 0.25 * r
         return Ballbar(p, circles, length, settings.circle_points, settings.noise_m)
+    if settings.artifact == "plane":
+        if len(settings.stations_m):
+            raise InvalidRequestError(
+                "stations_m places the spheres of a sphere artifact; a plane artifact is the default "
+                "block, its faces chosen by artifact_faces: leave stations_m out, or use artifact = 'sphere'"
+            )
+        faces = tuple(settings.artifact_faces)
+        centres, normals, extents = default_block(task_geometry(mechanism), faces, settings.artifact_radius_m)
+        return PlaneProbe(
+            p,
+            centres,
+            normals,
+            extents,
+            settings.artifact_radius_m,
+            settings.approach_directions,
+            settings.noise_m,
+            face_names=faces,
+        )
     centres = np.asarray(settings.stations_m, dtype=float).reshape(-1, 3)
     if not len(centres):
         centres = default_centres(mechanism, 3, ring=8, radius=0.9)

@@ -62,6 +62,8 @@ class Instrument(ABC):
     nuisance_names: tuple[str, ...] = ()
     nuisance_units: tuple[str, ...] = ()
     nuisance_scale: np.ndarray
+    #: What each nuisance parameter is, in words (for what the data cannot fix; empty: its name).
+    nuisance_meanings: tuple[str, ...] = ()
     #: Re-evaluate :meth:`twist_rows` and :meth:`nuisance_rows` at every Gauss–Newton iterate (the
     #: values are strongly curved in the platform pose: a distance to a centre a few cm away);
     #: the machine's twist maps stay the nominal ones.
@@ -124,6 +126,15 @@ class Instrument(ABC):
         """Candidate poses of the plan, or None: the task-space grid and random poses (a tracker)."""
         return None
 
+    def required(self, points_m: np.ndarray, stations: np.ndarray) -> np.ndarray:
+        """Candidates (indices into ``points_m`` (m, 3), ``stations`` (m,)) every D-optimal plan holds.
+
+        Default none. A plane artifact needs three touches of a face before any further touch of
+        it tells the machine anything (they fix the face's normal and offset), which a greedy,
+        one-touch-at-a-time choice cannot see.
+        """
+        return np.zeros(0, dtype=int)
+
     def nuisance_report(self, nuisance: np.ndarray, std: np.ndarray) -> list[dict[str, object]]:
         """The identified nuisance parameters for the output, one dict per parameter (SI)."""
         return [
@@ -138,6 +149,64 @@ class Instrument(ABC):
             f"{self.name}: {self.values_per_pose} value(s) per pose ({', '.join(self.value_names)}), "
             f"σ {noise}; {self.nuisance_count} nuisance parameter(s) identified with the machine"
         )
+
+
+def unseen_nuisance(instrument: Instrument, rows: np.ndarray, tolerance: float = 1e-8) -> list[str]:
+    """The instrument's nuisance directions that no value changes with (its data cannot fix them).
+
+    Args:
+        instrument: The measurement model.
+        rows: Shape (M, q): the values' change per unit nuisance parameter at the data.
+        tolerance: Relative singular value below which a direction is unseen.
+
+    Returns:
+        One name per unseen direction: a parameter's name when the direction is one parameter
+        (to 1e-6), else its combination (largest terms first).
+    """
+    rows = np.asarray(rows, dtype=float).reshape(-1, instrument.nuisance_count)
+    if not rows.size:
+        return []
+    scaled = rows * np.asarray(instrument.nuisance_scale, dtype=float)[None, :]
+    _, s, vt = np.linalg.svd(scaled, full_matrices=True)
+    full = np.zeros(vt.shape[0])
+    full[: s.size] = s
+    null = vt[full <= tolerance * max(float(full[0]), 1e-300)]
+    if not len(null):
+        return []
+    # a clean basis: reduce the null space to the fewest parameters (rref of its rows)
+    basis = _rref(null)
+    out = []
+    names = instrument.nuisance_names
+    meaning = instrument.nuisance_meanings or names
+    for v in basis:
+        big = np.flatnonzero(np.abs(v) > 1e-6 * np.abs(v).max())
+        if big.size == 1:
+            out.append(names[big[0]] + (f" ({meaning[big[0]]})" if meaning is not names else ""))
+        else:
+            order = big[np.argsort(-np.abs(v[big]))]
+            out.append(" ".join(f"{v[i] / v[order[0]]:+.3g}·{names[i]}" for i in order))
+    return out
+
+
+def _rref(rows: np.ndarray) -> np.ndarray:
+    """Reduced row echelon form of ``rows`` (k, q) with partial pivoting (a basis of the same span)."""
+    a = np.array(rows, dtype=float)
+    k, q = a.shape
+    r = 0
+    for c in range(q):
+        if r >= k:
+            break
+        p = r + int(np.argmax(np.abs(a[r:, c])))
+        if abs(a[p, c]) < 1e-9:
+            continue
+        a[[r, p]] = a[[p, r]]
+        a[r] /= a[r, c]
+        for i in range(k):
+            if i != r:
+                a[i] -= a[i, c] * a[r]
+        r += 1
+    a[np.abs(a) < 1e-12] = 0.0
+    return a[:r]
 
 
 def _fmt_noise(sigma: float, unit: str) -> str:

@@ -25,12 +25,27 @@ per touch (:mod:`pkmtol.calibration.instrument_files`).
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 import pinocchio as pin
 
 from pkmtol.calibration.instruments.base import Candidates, Instrument, lever_rows, skew
 from pkmtol.calibration.instruments.frame import rigid_fit
 from pkmtol.exceptions import InvalidRequestError
+
+
+class TouchSurface(Protocol):
+    """What :func:`trigger_commands` needs of a probe: its radius and its surface's distance."""
+
+    radius_m: float
+
+    def surface(
+        self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(d (N,), its gradient in P (N, 3))`` at platform poses (see :meth:`SphereProbe.surface`)."""
+        ...
+
 
 #: Names of the artifact pose's six parameters (translation then rotation, artifact frame).
 POSE_NAMES = ("artifact.dx", "artifact.dy", "artifact.dz", "artifact.rx", "artifact.ry", "artifact.rz")
@@ -123,12 +138,19 @@ class SphereProbe(Instrument):
         r, _, _ = self._offsets(origin, rotation, stations, nuisance)
         return np.linalg.norm(r, axis=1)[:, None]
 
+    def surface(
+        self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(d (N,), its gradient in P (N, 3))``: the distance to the centre and the unit ``u``."""
+        r, _, _ = self._offsets(origin, rotation, stations, nuisance)
+        d = np.linalg.norm(r, axis=1)
+        return d, r / d[:, None]
+
     def twist_rows(
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
     ) -> np.ndarray:
         """``uᵀ [I, −[R b]×]`` per pose, (N, 1, 6)."""
-        r, _, _ = self._offsets(origin, rotation, stations, nuisance)
-        u = r / np.linalg.norm(r, axis=1)[:, None]
+        _, u = self.surface(origin, rotation, stations, nuisance)
         return np.einsum("ka,kab->kb", u, lever_rows(rotation, self.point_m))[:, None, :]
 
     def nuisance_rows(
@@ -207,7 +229,7 @@ class SphereProbe(Instrument):
 
 def trigger_commands(
     machine: object,
-    probe: SphereProbe,
+    probe: TouchSurface,
     commands: np.ndarray,
     q: np.ndarray,
     stations: np.ndarray,
@@ -217,16 +239,16 @@ def trigger_commands(
 ) -> np.ndarray:
     """The readings at which a machine's probe triggers on the true artifact (simulated touches).
 
-    From the planned readings, each touch moves P along the sphere's normal until
-    ``‖P − A s_j‖ = R`` (Newton along the normal with the nominal command map ``C_k``:
-    ``Δu = −(d − R) C_k⁺ n``).
+    From the planned readings, each touch moves P along the surface's normal ``n`` (a sphere's
+    radial direction, a face's normal) until the value ``d`` (:meth:`surface`) is the probe's
+    ``R`` (Newton along the normal with the nominal command map ``C_k``: ``Δu = −(d − R) C_k⁺ n``).
 
     Args:
         machine: The true machine (:class:`pkmtol.calibration.machine.Machine`).
-        probe: The probe and its artifact.
+        probe: The probe and its artifact (spheres or planes).
         commands: Shape (N, f): planned readings.
         q: Shape (N, Σ nq): joint guesses there.
-        stations: Shape (N,): the sphere of each touch.
+        stations: Shape (N,): the sphere (face) of each touch.
         nuisance: The artifact's true pose parameters (6,).
         actuation: Shape (N, 3, f): P's motion per command change (``PoseMaps.position_actuation``).
         iterations: Newton steps.
@@ -238,9 +260,7 @@ def trigger_commands(
     pinv = np.linalg.pinv(actuation)  # (N, f, 3)
     for _ in range(iterations):
         sols = machine.forward_many(u, q)  # type: ignore[attr-defined]
-        r, _, _ = probe._offsets(sols.translation, sols.rotation, stations, nuisance)
-        d = np.linalg.norm(r, axis=1)
-        n = r / d[:, None]
+        d, n = probe.surface(sols.translation, sols.rotation, stations, nuisance)
         u = u - (d - probe.radius_m)[:, None] * np.einsum("kfa,ka->kf", pinv, n)
         q = sols.q
     return u
