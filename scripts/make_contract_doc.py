@@ -259,22 +259,16 @@ that model's largest failure over the grid (exact Gaussian reliability of its L/
 
 {refused}
 
-## What does not hold yet
+## What changed for the Delta's calibrated row
 
-The Delta's `calibrated` row: its `[calibration]` controller `full` identifies every error, so
-nothing is toleranced and the claim rests on the calibration alone; but the identification
-(Gauss–Newton on the frozen nominal Jacobian) does not converge on more than the study's 10 % of
-its machines. The Delta's 40-pose full plan (53 base parameters) is ill-conditioned (smallest
-singular value 8.5e-5 of the largest), so the nominal Jacobian's error in the weak directions
-stalls the iteration after 2–6 steps or lets it creep to the 30-iteration limit. A fix was built
-and measured with `check_contract(..., machines=100)` on the Delta's FOSM calibrated design: a
-trust-region finish (`scipy.optimize.least_squares`) certified by a finite-difference Jacobian at
-the estimate took the unconverged machines from 42 of 100 to 0 (all 147 poses hold), but it made
-every noisy identification 8× slower (the benchmark's 50-pose identification 0.023 → 0.18 s), the
-calibrated allocate's 500-machine verification minutes longer, and the Tricept's check 20 → 448 s
-with 6 of 100 machines then unconverged. It did not land; an analytic Jacobian at the estimate (the
-error model of the perturbed machine) is the way to make it cheap. `tests/test_identification_convergence.py`
-pins the defect as a strict expected failure.
+Its `[calibration]` controller `full` identifies every error, so nothing is toleranced and the
+claim rests on the calibration alone. Its 40-pose full plan (53 base parameters) is
+ill-conditioned (smallest singular value 8.5e-5 of the largest): Gauss–Newton on the frozen
+nominal Jacobian stalled several σ from the least-squares optimum, or crept to the iteration
+limit, on 86 of 200 machines, and the row read "cannot hold". Every stop is now certified on the
+analytic Jacobian at the estimate (docs/calibration.md, "Identification on exact kinematics"),
+and the row above is what that identification gives. `tests/test_identification_convergence.py`
+checks one of these machines against an independent finite-difference Jacobian at the estimate.
 """
 
 
