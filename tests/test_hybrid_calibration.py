@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -466,6 +467,26 @@ def test_cli_allocate_calibrated_hybrid(tmp_path, capsys):
     doc = json.loads((out / "allocation.json").read_text())
     classes = {p["class_in_mode"] for p in doc["parameters"]}
     assert {"identified", "toleranced"} <= classes
+
+
+def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys):
+    """The whole machine's calibration identifies every error: the report says so, and prints no NaN."""
+    out = tmp_path / "out"
+    args = ["allocate", str(HYBRID), "--compensation", "calibrated", "--method", "fosm"]
+    fast = ["--samples", "1000", "--verification-poses", "50", "--exact-samples", "10", "--no-figures"]
+    assert main([*args, *fast, "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads((out / "allocation.json").read_text())
+    assert not [p for p in doc["parameters"] if p["class_in_mode"] == "toleranced"]
+    for report in (text, (out / "allocation.md").read_text()):
+        assert re.search(r"\bnan\b", report) is None
+        assert "σ[Δλ_j] over the 525 grid points: no toleranced parameter" in report
+        assert "no tolerance to compare (the new method tolerances no parameter)" in report
+        assert "largest: no toleranced parameter (what is left is the tracker noise's)" in report
+        assert "(TCP, pose 0): no toleranced parameter" in report
+    rows = [line.split() for line in text.splitlines()]
+    shares = [r[-1] for r in rows if len(r) == 6 and r[0] in ("module", "wrist", "tool") and r[2] == "0"]
+    assert shares == ["-", "-", "-"]  # the share of nothing: not "0.0", not "nan"
 
 
 def test_tricept_wrist_calibrates_with_its_rank_tolerance():
