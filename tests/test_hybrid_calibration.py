@@ -22,7 +22,7 @@ from pkmtol.calibration.holdout import holdout_poses
 from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.hybrid_poses import with_tracker_on
-from pkmtol.calibration.identification import identify, machine_poses, model_positions
+from pkmtol.calibration.identification import identify, identify_with, machine_poses, model_positions
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.measurement_files import measurements_csv
@@ -467,6 +467,111 @@ def test_cli_allocate_calibrated_hybrid(tmp_path, capsys):
     doc = json.loads((out / "allocation.json").read_text())
     classes = {p["class_in_mode"] for p in doc["parameters"]}
     assert {"identified", "toleranced"} <= classes
+
+
+@pytest.fixture(scope="module")
+def six_d(hybrid):
+    """The hybrid's plans with a 6D probe (``tracker-6d``) on the TCP frame: registered or identified."""
+    mech, pset, grid, classes, _, _ = hybrid
+    out = {}
+    for frame in ("registered", "identify"):
+        st = CalibrationSettings(candidates=60, instrument="tracker-6d", tracker_frame=frame)
+        out[frame] = make_plan(mech, pset, classes, st, candidate_pool(mech, pset, st, grid=grid), poses=30)
+    return out
+
+
+def _six_d_values(mech, pset, plan, delta, nuisance=None):
+    inst = plan.instrument
+    o, R, _ = machine_poses(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q)
+    pi = np.zeros(inst.nuisance_count) if nuisance is None else nuisance
+    return inst.measure(o, R, plan.stations, pi)
+
+
+def test_six_d_probe_on_the_tcp_reads_its_position_and_the_tool_frame(hybrid, six_d):
+    """The probe's values are the TCP and the TCP frame's orientation; H against the exact machine's FD."""
+    mech, pset, grid, classes, _, _ = hybrid
+    plan = six_d["registered"]
+    inst = plan.instrument
+    np.testing.assert_array_equal(inst.point_m, np.zeros(3))  # on the TCP, not on the module's P
+    zero = np.zeros(len(pset))
+    y0 = _six_d_values(mech, pset, plan, zero)
+    np.testing.assert_allclose(y0[:, :3], plan.maps.points_m, rtol=0, atol=1e-12)
+    for k in (0, 7, 29):  # the orientation is the TCP frame's: its z is the tool axis
+        np.testing.assert_allclose(pin.exp3(y0[k, 3:]), plan.maps.rotations[k], rtol=0, atol=1e-12)
+    assert plan.H.shape[0] == 6 * len(plan.maps)
+    rng = np.random.default_rng(4)
+    module = [c for c in plan.ident.columns if c < pset.module_count]
+    tool = [c for c in plan.ident.columns if c >= pset.module_count]
+    cols = list(rng.choice(module, 8, replace=False)) + tool
+    h = 1e-6
+    for c in cols:
+        vals = []
+        for sign in (1, -1):
+            d = zero.copy()
+            d[c] = sign * h
+            vals.append(inst.residual(_six_d_values(mech, pset, plan, d), y0))
+        fd = ((vals[0] - vals[1]) / (2 * h)).reshape(-1)
+        np.testing.assert_allclose(
+            plan.system.machine[:, c],
+            fd,
+            rtol=0,
+            atol=1e-7 * max(1.0, np.abs(fd).max()),
+            err_msg=pset.names[c],
+        )
+    # the orientation rows see the tool's tilt in the spindle, which a point on the TCP does not
+    rx = pset.names.index("tool.tcp.rx")
+    assert np.abs(plan.system.machine[:, rx]).max() > 0.5
+    assert rx in plan.ident.columns
+
+
+@pytest.mark.parametrize("frame", ["registered", "identify"])
+def test_six_d_noise_free_identification_recovers_the_base_parameters(hybrid, six_d, frame):
+    """Base-parameter errors at manufacturing size (and a random tracker placement): ≤ 1e-8 (1e-7)."""
+    mech, pset, *_ = hybrid
+    plan = six_d[frame]
+    inst = plan.instrument
+    rng = np.random.default_rng(11)
+    delta = np.zeros(len(pset))
+    scale = np.where(np.array(pset.units) == "m", 1e-4, 5e-4)
+    b = plan.ident.base_columns
+    assert any(i >= pset.module_count for i in b)
+    delta[b] = rng.standard_normal(b.size) * scale[b]
+    pi = inst.draw_nuisance(rng)
+    y = _six_d_values(mech, pset, plan, delta, pi)
+    res = identify_with(mech, pset, plan.ident, plan.maps, inst, y, None)
+    beta = plan.ident.true_base_values(delta)
+    assert res.converged
+    bound = 1e-8 if inst.nuisance_count == 0 else 1e-7  # a frame: the second-order gap of test_instruments
+    assert np.linalg.norm(res.identified - beta) <= bound * np.linalg.norm(beta)
+    assert res.weighted_rms < 1e-6
+
+
+def test_six_d_calibration_takes_the_tool_axis_out(hybrid, six_d):
+    """Against one point on the TCP, the 6D probe sees the tool axis: more combinations, far less tilt.
+
+    Noise-free, compensatable errors at 1e-6: the exact machine after calibration is ``L δ`` (the
+    linear model of the 6D plan), and the tilt left is a small fraction of what a point leaves.
+    """
+    mech, pset, grid, classes, settings, pool = hybrid
+    point = make_plan(mech, pset, classes, settings, pool, poses=30)
+    plan = six_d["registered"]
+    assert plan.ident.rank > point.ident.rank
+    ho = holdout_poses(mech, pset, 20, np.random.default_rng(8))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta = np.zeros(len(pset))
+    delta[comp] = np.random.default_rng(2).standard_normal(len(comp)) * 1e-6
+    true = Machine(mech, pset, delta)
+    tilts = {}
+    for name, p in (("point", point), ("6d", plan)):
+        errs, ident = calibrate_and_evaluate(mech, pset, p, true, np.zeros(p.H.shape[0]), ho.maps)
+        assert ident.converged and errs.solved.all()
+        maps = calibrated_maps(ho.maps, p.H, p.ident)
+        lin_p = np.einsum("kin,n->ki", maps.position, delta)
+        lin_r = np.einsum("kin,n->ki", maps.rotation, delta)
+        assert np.abs(errs.position_m - lin_p).max() <= 1e-3 * np.abs(delta).max()
+        assert np.abs(errs.rotation_rad - lin_r).max() <= 1e-3 * max(np.abs(lin_r).max(), np.abs(delta).max())
+        tilts[name] = _tilt(ho.maps.rotations, errs.rotation_rad).max()
+    assert tilts["point"] > 1e-7 and tilts["6d"] < 1e-3 * tilts["point"]
 
 
 def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys):
