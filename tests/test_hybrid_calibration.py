@@ -23,6 +23,7 @@ from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.hybrid_poses import with_tracker_on
 from pkmtol.calibration.identification import identify, identify_with, machine_poses, model_positions
+from pkmtol.calibration.instrument_files import instrument_csv
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.measurement_files import measurements_csv
@@ -572,6 +573,39 @@ def test_six_d_calibration_takes_the_tool_axis_out(hybrid, six_d):
         assert np.abs(errs.rotation_rad - lin_r).max() <= 1e-3 * max(np.abs(lin_r).max(), np.abs(delta).max())
         tilts[name] = _tilt(ho.maps.rotations, errs.rotation_rad).max()
     assert tilts["point"] > 1e-7 and tilts["6d"] < 1e-3 * tilts["point"]
+
+
+def test_cli_six_d_measurements_round_trip_on_the_hybrid(hybrid, six_d, tmp_path, capsys):
+    """A 6D probe's session file of the whole machine → identified errors → a loadable calibrated hybrid."""
+    mech, pset, grid, classes, _, _ = hybrid
+    plan = six_d["registered"]
+    inst = plan.instrument
+    rng = np.random.default_rng(3)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    values = _six_d_values(mech, pset, plan, delta)
+    values = inst.perturb(values, rng.standard_normal(values.shape) * inst.noise[None, :])
+    path = tmp_path / "session.csv"
+    path.write_text(instrument_csv(mech, inst, plan.maps.commands, values, plan.stations))
+    assert path.read_text().splitlines()[0].endswith("rx [mrad],ry [mrad],rz [mrad]")
+    out = tmp_path / "out"
+    args = ["calibrate", str(HYBRID), "--instrument", "tracker-6d", "--measurements", str(path)]
+    assert main([*args, "--out", str(out)]) == 0
+    assert "instrument tracker-6d" in capsys.readouterr().out
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_in_sigma"] < 1.5
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    assert estimate[pset.names.index("tool.tcp.rx")] != 0.0  # the tool's tilt is seen by the probe
+    identified = Machine(mech, pset, estimate)
+    calibrated = load_mechanism(out / "calibrated")
+    cal_set = machine_parameter_set(calibrated, "urdf")
+    a = identified.forward_many(plan.maps.commands, plan.maps.q)
+    b = Machine(calibrated, cal_set, np.zeros(len(cal_set))).forward_many(
+        plan.maps.commands, plan.maps.q - identified.offsets
+    )
+    assert np.abs(a.translation - b.translation).max() <= 1e-12
+    assert np.abs(a.rotation - b.rotation).max() <= 1e-12
 
 
 def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys):
