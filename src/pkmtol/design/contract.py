@@ -79,7 +79,7 @@ class PoseCheck:
 
     Attributes:
         index: Grid index.
-        point_m: Shape (3,): the pose's P in K [m].
+        point_m: Shape (3,): the pose's P in K (a hybrid's TCP) [m].
         claimed: Claimed failure ``1 − R`` at this pose (NaN: the design claims nothing here).
         predicted: The design's own linear model's failure here (exact Gaussian reliability).
         measured: Share of the machines that fail here: beyond Δλ* (or, with a joint claim, beyond
