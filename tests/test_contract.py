@@ -6,20 +6,31 @@ project's identification, the identified model's exact IK) and measured by exact
 at every grid pose (DESIGN.md, "Claims and their scope"; docs/contract.md has the table at 200
 machines). One negative control shows the check can fail: the one-pose FOSM design of the seed robot
 under ``calibrated`` misses Φ(β) over the task space (issue 24: 72.5 % predicted at grid pose 44).
+
+A hybrid machine (``robots/r2rps_ups_wrist``: the seed module, an A/C wrist and the tool) is checked
+at its TCP: machines of the whole machine, calibrated by the whole machine's identification,
+commanded by the identified model's exact IK of the TCP and the tool axis, measured by the exact
+forward kinematics of the module and the tool chain. Its joint claim of Δλ and Δα (an orientation
+target) is checked on a smaller grid of the same machine (the joint design's cost grows with it).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.machine import Machine
+from pkmtol.calibration.maps import pose_maps
 from pkmtol.design.contract import VERDICTS, _mechanism_settings, _pose_check, check_contract, machine_sigma
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.design.reliability import reliability_fosm
 from pkmtol.exceptions import InvalidArgumentError
+from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.model.loader import load_mechanism
 from pkmtol.statistics import wilson_interval
 
@@ -30,9 +41,9 @@ R_STAR = float(reliability_fosm(2.0))
 _DESIGNS: dict[tuple[str, str, str, str | None], object] = {}
 
 
-def design(robot: str, mode: str, method: str = "exact", pset: str | None = None):
+def design(robot: str, mode: str, method: str = "exact", pset: str | None = None, mech=None, **extra):
     """The design as `pkmtol allocate` makes it (few verification samples: they do not change σ)."""
-    key = (robot, mode, method, pset)
+    key = (robot, mode, method, pset, *sorted(extra.items()))
     if key not in _DESIGNS:
         options = DesignOptions(
             method=method,
@@ -43,8 +54,9 @@ def design(robot: str, mode: str, method: str = "exact", pset: str | None = None
             verification_poses=200,
             exact_samples=0,
             claim_poses=20,
+            **extra,
         )
-        _DESIGNS[key] = allocate(load_mechanism(ROOT / "robots" / robot), options)
+        _DESIGNS[key] = allocate(mech or load_mechanism(ROOT / "robots" / robot), options)
     return _DESIGNS[key]
 
 
@@ -229,3 +241,103 @@ def test_bad_arguments(name, value):
     d = design("r2rps_ups", "ideal")
     with pytest.raises(InvalidArgumentError, match=name):
         check_contract(d, **{name: value})
+
+
+#: Machines of the hybrid's calibrated check (each is 0.8 s: a whole-machine calibration and 525 IK solves).
+HYBRID_MACHINES = 20
+_HYBRID: dict[str, object] = {}
+
+
+def hybrid_calibrated_check():
+    """``allocate robots/r2rps_ups_wrist --compensation calibrated`` checked on 20 machines."""
+    if not _HYBRID:
+        d = design("r2rps_ups_wrist", "calibrated")
+        _HYBRID["calibrated"] = (d, check_contract(d, machines=HYBRID_MACHINES))
+    return _HYBRID["calibrated"]
+
+
+def test_hybrid_calibrated_claim_holds_at_every_tcp_pose():
+    """The whole machine calibrated by its own plan: the TCP's claim holds at all 525 grid poses.
+
+    With the wrist's two actuators, every error that reaches the task is compensatable and the
+    tracker's identification holds them all: nothing is toleranced, every non-absorbed error is
+    drawn at its manufacturing σ (0.1 mm, 0.5 mrad), and the claim rests on the calibration.
+    """
+    d, check = hybrid_calibrated_check()
+    assert check.hybrid and check.task == "Δλ ≤ 50 µm at the TCP" and check.orientation_target_rad is None
+    assert len(check.poses) == len(d.grid.poses) == 525
+    assert check.scope == "every one of 525 grid poses"
+    assert d.uncompensatable.size == 0
+    assert np.count_nonzero(machine_sigma(d, d.calibration_plan.settings)) == 66
+    assert check.unconverged == ()
+    assert all(p.machines == HYBRID_MACHINES and p.unsolved == 0 for p in check.poses)
+    assert _not_holding(check) == [] and check.holds and check.aggregate_holds
+    # the machines' TCP errors are what the linear L δ + N ν predicts of the same draws
+    assert all(p.linear_valid for p in check.poses)
+    assert max(p.linear_gap_m for p in check.poses) < 0.01 * check.target_m
+    worst = float(np.nanmax(check.dlambda_m))
+    assert 5e-6 < worst < check.target_m  # calibrated to the noise, not to nothing
+    # one tracker target per pose does not see the tool axis: its tilt stays (reported, not judged)
+    assert check.dalpha_rad.shape == check.dlambda_m.shape == (HYBRID_MACHINES, 525)
+    assert np.nanmean(check.dalpha_rad) > 1e-4
+    assert all(np.isnan(p.tilt_measured) for p in check.poses)
+
+
+def test_hybrid_ideal_machine_measured_at_its_tcp():
+    """The hybrid's Δλ and Δα: the true whole machine's exact FK at Eq. 25's commands, re-solved here."""
+    d = design("r2rps_ups_wrist", "ideal")
+    check = check_contract(d, machines=3, seed=5)
+    assert check.holds and len(check.poses) == 525
+    mech, pset = d.mechanism, d.pset
+    sigma = machine_sigma(d, _mechanism_settings(d))
+    held = pose_maps(d.grid, ClosedChain(mech).actuated_idx, mech.reference_point_m)
+    correction = np.array([s.correction for s in d.grid.separations])
+    rows = [0, 93, 524]
+    for k, s in enumerate(np.random.SeedSequence(5).spawn(3)):
+        delta = np.random.default_rng(s).standard_normal(len(pset)) * sigma
+        true = Machine(mech, pset, delta)
+        assert isinstance(true, HybridMachine)
+        u = held.commands[rows] + np.einsum("kfn,n->kf", correction[rows], delta)
+        got = true.forward_many(u, held.q[rows])
+        assert got.ok.all()
+        dl = np.linalg.norm(got.translation - held.points_m[rows], axis=1)
+        np.testing.assert_allclose(check.dlambda_m[k, rows], dl, rtol=1e-6)
+        nominal, actual = held.rotations[rows][:, :, 2], got.rotation[:, :, 2]
+        tilt = np.arctan2(np.linalg.norm(np.cross(nominal, actual), axis=1), (nominal * actual).sum(axis=1))
+        np.testing.assert_allclose(check.dalpha_rad[k, rows], tilt, rtol=1e-6)
+        assert np.all(dl > 1e-8) and np.all(tilt > 1e-9)  # the machines are not the nominal one
+
+
+@pytest.fixture(scope="module")
+def small_hybrid(tmp_path_factory):
+    """r2rps_ups_wrist on one layer of 9 TCP points × 7 tool axes; the module compensates (Eq. 25)."""
+    folder = tmp_path_factory.mktemp("hybrid") / "r2rps_ups_wrist"
+    shutil.copytree(ROOT / "robots" / "r2rps_ups_wrist", folder)
+    toml = folder / "mechanism.toml"
+    text = toml.read_text()
+    assert "layers = 3" in text and "rings = [8, 16]" in text
+    toml.write_text(text.replace("layers = 3", "layers = 1").replace("rings = [8, 16]", "rings = [8]"))
+    mech = load_mechanism(folder)
+    return dataclasses.replace(mech, extra={**mech.extra, "tool_scope": "module"})
+
+
+def test_hybrid_joint_claim_of_position_and_tool_axis_holds(small_hybrid):
+    """An orientation target makes the claim joint: Δλ ≤ Δλ* and Δα ≤ Δα* at every grid pose.
+
+    `allocate --compensate-with module --orientation-target 0.1mrad --method exact` tolerances
+    the module's, the wrist's and the tool's errors (32); the tilt is what binds. Each machine
+    fails at a pose when either index is beyond its target.
+    """
+    d = design("r2rps_ups_wrist small", "ideal", mech=small_hybrid, orientation_target_rad=1e-4)
+    assert d.claim.joint and d.uncompensatable.size == 32
+    check = check_contract(d, machines=MACHINES)
+    assert check.orientation_target_rad == 1e-4 and "Δα ≤ 100 µrad" in check.task
+    assert len(check.poses) == 63 and check.scope == "every one of 63 grid poses"
+    assert _not_holding(check) == [] and check.holds and check.aggregate_holds
+    # the design's own joint linear model binds somewhere at R* (the criterion's minimum)
+    assert max(p.predicted for p in check.poses) == pytest.approx(1 - R_STAR, abs=3e-4)
+    # what fails is the tool axis: judged by Δλ alone, fewer machines would fail
+    position_only = np.sum(check.dlambda_m > check.target_m)
+    joint = np.sum((check.dlambda_m > check.target_m) | (check.dalpha_rad > 1e-4))
+    assert joint > position_only and max(p.tilt_measured for p in check.poses) > 0
+    assert sum(round(p.measured * p.machines) for p in check.poses) == joint

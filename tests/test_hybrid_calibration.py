@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ from pkmtol.calibration.holdout import holdout_poses
 from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_machine import HybridMachine
 from pkmtol.calibration.hybrid_poses import with_tracker_on
-from pkmtol.calibration.identification import identify, machine_poses, model_positions
+from pkmtol.calibration.identification import identify, identify_with, machine_poses, model_positions
+from pkmtol.calibration.instrument_files import instrument_csv
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.measurement_files import measurements_csv
@@ -466,6 +468,164 @@ def test_cli_allocate_calibrated_hybrid(tmp_path, capsys):
     doc = json.loads((out / "allocation.json").read_text())
     classes = {p["class_in_mode"] for p in doc["parameters"]}
     assert {"identified", "toleranced"} <= classes
+
+
+@pytest.fixture(scope="module")
+def six_d(hybrid):
+    """The hybrid's plans with a 6D probe (``tracker-6d``) on the TCP frame: registered or identified."""
+    mech, pset, grid, classes, _, _ = hybrid
+    out = {}
+    for frame in ("registered", "identify"):
+        st = CalibrationSettings(candidates=60, instrument="tracker-6d", tracker_frame=frame)
+        out[frame] = make_plan(mech, pset, classes, st, candidate_pool(mech, pset, st, grid=grid), poses=30)
+    return out
+
+
+def _six_d_values(mech, pset, plan, delta, nuisance=None):
+    inst = plan.instrument
+    o, R, _ = machine_poses(Machine(mech, pset, delta), plan.maps.commands, plan.maps.q)
+    pi = np.zeros(inst.nuisance_count) if nuisance is None else nuisance
+    return inst.measure(o, R, plan.stations, pi)
+
+
+def test_six_d_probe_on_the_tcp_reads_its_position_and_the_tool_frame(hybrid, six_d):
+    """The probe's values are the TCP and the TCP frame's orientation; H against the exact machine's FD."""
+    mech, pset, grid, classes, _, _ = hybrid
+    plan = six_d["registered"]
+    inst = plan.instrument
+    np.testing.assert_array_equal(inst.point_m, np.zeros(3))  # on the TCP, not on the module's P
+    zero = np.zeros(len(pset))
+    y0 = _six_d_values(mech, pset, plan, zero)
+    np.testing.assert_allclose(y0[:, :3], plan.maps.points_m, rtol=0, atol=1e-12)
+    for k in (0, 7, 29):  # the orientation is the TCP frame's: its z is the tool axis
+        np.testing.assert_allclose(pin.exp3(y0[k, 3:]), plan.maps.rotations[k], rtol=0, atol=1e-12)
+    assert plan.H.shape[0] == 6 * len(plan.maps)
+    rng = np.random.default_rng(4)
+    module = [c for c in plan.ident.columns if c < pset.module_count]
+    tool = [c for c in plan.ident.columns if c >= pset.module_count]
+    cols = list(rng.choice(module, 8, replace=False)) + tool
+    h = 1e-6
+    for c in cols:
+        vals = []
+        for sign in (1, -1):
+            d = zero.copy()
+            d[c] = sign * h
+            vals.append(inst.residual(_six_d_values(mech, pset, plan, d), y0))
+        fd = ((vals[0] - vals[1]) / (2 * h)).reshape(-1)
+        np.testing.assert_allclose(
+            plan.system.machine[:, c],
+            fd,
+            rtol=0,
+            atol=1e-7 * max(1.0, np.abs(fd).max()),
+            err_msg=pset.names[c],
+        )
+    # the orientation rows see the tool's tilt in the spindle, which a point on the TCP does not
+    rx = pset.names.index("tool.tcp.rx")
+    assert np.abs(plan.system.machine[:, rx]).max() > 0.5
+    assert rx in plan.ident.columns
+
+
+@pytest.mark.parametrize("frame", ["registered", "identify"])
+def test_six_d_noise_free_identification_recovers_the_base_parameters(hybrid, six_d, frame):
+    """Base-parameter errors at manufacturing size (and a random tracker placement): ≤ 1e-8 (1e-7)."""
+    mech, pset, *_ = hybrid
+    plan = six_d[frame]
+    inst = plan.instrument
+    rng = np.random.default_rng(11)
+    delta = np.zeros(len(pset))
+    scale = np.where(np.array(pset.units) == "m", 1e-4, 5e-4)
+    b = plan.ident.base_columns
+    assert any(i >= pset.module_count for i in b)
+    delta[b] = rng.standard_normal(b.size) * scale[b]
+    pi = inst.draw_nuisance(rng)
+    y = _six_d_values(mech, pset, plan, delta, pi)
+    res = identify_with(mech, pset, plan.ident, plan.maps, inst, y, None)
+    beta = plan.ident.true_base_values(delta)
+    assert res.converged
+    bound = 1e-8 if inst.nuisance_count == 0 else 1e-7  # a frame: the second-order gap of test_instruments
+    assert np.linalg.norm(res.identified - beta) <= bound * np.linalg.norm(beta)
+    assert res.weighted_rms < 1e-6
+
+
+def test_six_d_calibration_takes_the_tool_axis_out(hybrid, six_d):
+    """Against one point on the TCP, the 6D probe sees the tool axis: more combinations, far less tilt.
+
+    Noise-free, compensatable errors at 1e-6: the exact machine after calibration is ``L δ`` (the
+    linear model of the 6D plan), and the tilt left is a small fraction of what a point leaves.
+    """
+    mech, pset, grid, classes, settings, pool = hybrid
+    point = make_plan(mech, pset, classes, settings, pool, poses=30)
+    plan = six_d["registered"]
+    assert plan.ident.rank > point.ident.rank
+    ho = holdout_poses(mech, pset, 20, np.random.default_rng(8))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta = np.zeros(len(pset))
+    delta[comp] = np.random.default_rng(2).standard_normal(len(comp)) * 1e-6
+    true = Machine(mech, pset, delta)
+    tilts = {}
+    for name, p in (("point", point), ("6d", plan)):
+        errs, ident = calibrate_and_evaluate(mech, pset, p, true, np.zeros(p.H.shape[0]), ho.maps)
+        assert ident.converged and errs.solved.all()
+        maps = calibrated_maps(ho.maps, p.H, p.ident)
+        lin_p = np.einsum("kin,n->ki", maps.position, delta)
+        lin_r = np.einsum("kin,n->ki", maps.rotation, delta)
+        assert np.abs(errs.position_m - lin_p).max() <= 1e-3 * np.abs(delta).max()
+        assert np.abs(errs.rotation_rad - lin_r).max() <= 1e-3 * max(np.abs(lin_r).max(), np.abs(delta).max())
+        tilts[name] = _tilt(ho.maps.rotations, errs.rotation_rad).max()
+    assert tilts["point"] > 1e-7 and tilts["6d"] < 1e-3 * tilts["point"]
+
+
+def test_cli_six_d_measurements_round_trip_on_the_hybrid(hybrid, six_d, tmp_path, capsys):
+    """A 6D probe's session file of the whole machine → identified errors → a loadable calibrated hybrid."""
+    mech, pset, grid, classes, _, _ = hybrid
+    plan = six_d["registered"]
+    inst = plan.instrument
+    rng = np.random.default_rng(3)
+    delta = np.zeros(len(pset))
+    comp = [i for i, c in enumerate(classes) if c == "compensatable"]
+    delta[comp] = rng.standard_normal(len(comp)) * np.where(np.array(pset.units)[comp] == "m", 1e-4, 5e-4)
+    values = _six_d_values(mech, pset, plan, delta)
+    values = inst.perturb(values, rng.standard_normal(values.shape) * inst.noise[None, :])
+    path = tmp_path / "session.csv"
+    path.write_text(instrument_csv(mech, inst, plan.maps.commands, values, plan.stations))
+    assert path.read_text().splitlines()[0].endswith("rx [mrad],ry [mrad],rz [mrad]")
+    out = tmp_path / "out"
+    args = ["calibrate", str(HYBRID), "--instrument", "tracker-6d", "--measurements", str(path)]
+    assert main([*args, "--out", str(out)]) == 0
+    assert "instrument tracker-6d" in capsys.readouterr().out
+    doc = json.loads((out / "identified.json").read_text())
+    assert doc["converged"] and doc["rms_after_in_sigma"] < 1.5
+    estimate = np.array([doc["estimate"][n] for n in pset.names])
+    assert estimate[pset.names.index("tool.tcp.rx")] != 0.0  # the tool's tilt is seen by the probe
+    identified = Machine(mech, pset, estimate)
+    calibrated = load_mechanism(out / "calibrated")
+    cal_set = machine_parameter_set(calibrated, "urdf")
+    a = identified.forward_many(plan.maps.commands, plan.maps.q)
+    b = Machine(calibrated, cal_set, np.zeros(len(cal_set))).forward_many(
+        plan.maps.commands, plan.maps.q - identified.offsets
+    )
+    assert np.abs(a.translation - b.translation).max() <= 1e-12
+    assert np.abs(a.rotation - b.rotation).max() <= 1e-12
+
+
+def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys):
+    """The whole machine's calibration identifies every error: the report says so, and prints no NaN."""
+    out = tmp_path / "out"
+    args = ["allocate", str(HYBRID), "--compensation", "calibrated", "--method", "fosm"]
+    fast = ["--samples", "1000", "--verification-poses", "50", "--exact-samples", "10", "--no-figures"]
+    assert main([*args, *fast, "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads((out / "allocation.json").read_text())
+    assert not [p for p in doc["parameters"] if p["class_in_mode"] == "toleranced"]
+    for report in (text, (out / "allocation.md").read_text()):
+        assert re.search(r"\bnan\b", report) is None
+        assert "σ[Δλ_j] over the 525 grid points: no toleranced parameter" in report
+        assert "no tolerance to compare (the new method tolerances no parameter)" in report
+        assert "largest: no toleranced parameter (what is left is the tracker noise's)" in report
+        assert "(TCP, pose 0): no toleranced parameter" in report
+    rows = [line.split() for line in text.splitlines()]
+    shares = [r[-1] for r in rows if len(r) == 6 and r[0] in ("module", "wrist", "tool") and r[2] == "0"]
+    assert shares == ["-", "-", "-"]  # the share of nothing: not "0.0", not "nan"
 
 
 def test_tricept_wrist_calibrates_with_its_rank_tolerance():

@@ -34,6 +34,9 @@ from pkmtol.model.mechanism import Mechanism
 
 #: The nominal solvers of the mechanisms seen (the controller's target axes come from them).
 _NOMINAL: dict[int, tuple[Mechanism, HybridChain]] = {}
+#: How many requests of :func:`nominal_poses` are kept.
+_POSES_KEPT = 8
+_POSES: dict[tuple[int, tuple[int, ...], bytes], tuple[Mechanism, tuple[HybridPose, ...]]] = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,7 +178,8 @@ class HybridMachine:
                 failed[k] = err
                 guesses.append(g)
                 continue
-            guesses.append(self.chain.evaluate(assembled(self.chain.chain, mod.q[k]), q_nominal[k, n0:]))
+            # the batched solve's pose carries this machine's own tangent ∂q/∂P (no re-evaluation)
+            guesses.append(self.chain.evaluate(mod.pose(k), q_nominal[k, n0:]))
         solved = [failed.get(k, s) for k, s in enumerate(self.chain.inverse_many(targets, axes, guesses))]
         b = len(targets)
         q = np.full((b, n0 + self.tool.nq), np.nan)
@@ -212,7 +216,21 @@ def assembled(chain: ClosedChain, q: np.ndarray) -> Pose:
 
 
 def nominal_poses(mechanism: Mechanism, q: np.ndarray) -> list[HybridPose]:
-    """The nominal machine's poses at joint values ``q`` (B, N + nq_t) (assembled, not solved)."""
+    """The nominal machine's poses at joint values ``q`` (B, N + nq_t) (assembled, not solved).
+
+    The last :data:`_POSES_KEPT` requests are kept: every machine of a study or a contract check
+    commands the same held-out poses, whose nominal poses (each with its module's tangent, three
+    first-order solves) would otherwise be rebuilt for each machine.
+    """
+    rows = np.atleast_2d(np.asarray(q, dtype=float))
+    key = (id(mechanism), rows.shape, rows.tobytes())
+    hit = _POSES.get(key)
+    if hit is not None and hit[0] is mechanism:
+        return list(hit[1])
     hc = nominal_chain(mechanism)
     n0 = int(hc.chain.offsets[-1])
-    return [hc.evaluate(assembled(hc.chain, row[:n0]), row[n0:]) for row in np.atleast_2d(q)]
+    poses = [hc.evaluate(assembled(hc.chain, row[:n0]), row[n0:]) for row in rows]
+    if len(_POSES) >= _POSES_KEPT:
+        _POSES.pop(next(iter(_POSES)))
+    _POSES[key] = (mechanism, tuple(poses))
+    return poses

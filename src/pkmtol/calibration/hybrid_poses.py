@@ -6,7 +6,9 @@ task space, axis uniform over the cone), the held-out poses ``count`` random tar
 solved from its nearest grid pose, unreachable or singular draws are skipped, and the solved poses
 are separated by the whole machine's error model (:func:`hybrid_sweep`) so that
 :func:`pkmtol.calibration.maps.pose_maps` gives their maps at the TCP. The instrument is a tracker
-on the TCP (``tracker``, or ``tracker-multi`` with targets in the TCP frame). Measured poses
+on the TCP (``tracker``, ``tracker-multi`` with targets in the TCP frame, or ``tracker-6d``: a 6D
+probe on the TCP frame reading the TCP and the frame's orientation; on the spindle nose with
+``tracker_on = "nose"``). Measured poses
 (``pkmtol calibrate --measurements``) are solved by the nominal machine's forward kinematics at
 their commands (:func:`measured_sweep`).
 """
@@ -38,20 +40,21 @@ from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.kinematics.hybrid import HybridChain, HybridPose
 from pkmtol.model.mechanism import Mechanism
 
-#: The instruments a hybrid's calibration models (a tracker's targets on the TCP frame).
-INSTRUMENTS = ("tracker", "tracker-multi")
+#: The instruments a hybrid's calibration models (a tracker's targets, or its 6D probe, on the TCP frame).
+INSTRUMENTS = ("tracker", "tracker-multi", "tracker-6d")
 
 
 def check_instrument(mechanism: Mechanism, settings: CalibrationSettings) -> None:
     """Refuse an instrument the hybrid's calibration does not model.
 
     Raises:
-        InvalidRequestError: not a tracker (a ballbar's or a probe's stations are the module's).
+        InvalidRequestError: not a tracker (a ballbar's circles and a probe's artifact are placed
+            in the module's task space, around P; docs/hybrid.md).
     """
     if settings.instrument not in INSTRUMENTS:
         raise InvalidRequestError(
             f"'{mechanism.name}' is a hybrid machine: its calibration models a laser tracker whose "
-            f"targets sit on the TCP frame (instrument = {' or '.join(INSTRUMENTS)}), not a "
+            f"targets (or 6D probe) sit on the TCP frame (instrument = {', '.join(INSTRUMENTS)}), not a "
             f"{settings.instrument}; set [calibration] instrument or --instrument to tracker"
         )
 

@@ -15,7 +15,19 @@ machine), so the check reuses the project's identification and compensation rath
   grid target by the identified model's exact inverse kinematics;
 * ``none``: the nominal commands.
 
-At each grid pose each machine contributes one Bernoulli trial (Δλ > Δλ*), so the Wilson interval of
+A hybrid machine (a ``[tool]`` chain, docs/hybrid.md) goes through the same simulation with the
+whole machine in place of the module: its grid poses are TCP points × tool axes, its machines
+perturb the limbs, the wrist and the tool, the identification and the controller are those of the
+whole machine (:mod:`pkmtol.calibration.hybrid_machine`: the identified model's exact inverse
+kinematics of the TCP and the tool axis), and the machine is measured by the exact forward
+kinematics of the module and the tool chain together. Δλ is then the TCP's position error.
+
+Every machine's tilt of the tool axis Δα is measured too. When the design claims the joint
+reliability ``P(Δλ ≤ Δλ* and Δα ≤ Δα*)`` (an ``exact`` design with an orientation target), a
+machine fails at a pose when either index is beyond its target, and the design's own linear
+prediction there is that joint reliability; otherwise Δα is reported and not judged.
+
+At each grid pose each machine contributes one Bernoulli trial (a failure), so the Wilson interval of
 the failures across machines is the clustered interval of that pose; the task-space aggregate
 pools the poses and takes a bootstrap over whole machines (:mod:`pkmtol.calibration.intervals`).
 The claim holds at a pose when the claimed failure lies inside or above the 95 % interval. A machine
@@ -33,6 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pkmtol.calibration.compensation import PoseErrors
 from pkmtol.calibration.intervals import machine_bootstrap
 from pkmtol.calibration.maps import pose_maps
 from pkmtol.calibration.settings import CalibrationSettings, settings_from_table
@@ -45,9 +58,10 @@ from pkmtol.calibration.study import (
     study_context,
 )
 from pkmtol.design.exact import grid_reliability
+from pkmtol.design.orientation import joint_covariance, joint_reliability
 from pkmtol.design.reliability import exact_reliability_many, reliability_fosm
 from pkmtol.error_model.compensation import AccuracyMaps, mode_maps
-from pkmtol.exceptions import InvalidArgumentError, InvalidRequestError
+from pkmtol.exceptions import InvalidArgumentError
 from pkmtol.executor import Executor, map_chunks
 from pkmtol.kinematics.closed_chain import ClosedChain
 from pkmtol.statistics import quantiles, wilson_interval
@@ -65,15 +79,17 @@ class PoseCheck:
 
     Attributes:
         index: Grid index.
-        point_m: Shape (3,): the pose's P in K [m].
+        point_m: Shape (3,): the pose's P in K (a hybrid's TCP) [m].
         claimed: Claimed failure ``1 − R`` at this pose (NaN: the design claims nothing here).
         predicted: The design's own linear model's failure here (exact Gaussian reliability).
-        measured: Share of the machines beyond Δλ* here (unsolved machines count as failed).
+        measured: Share of the machines that fail here: beyond Δλ* (or, with a joint claim, beyond
+            Δα*); unsolved machines count as failed.
         low: Lower end of its 95 % Wilson interval (one trial per machine).
         high: Upper end.
         machines: Machines counted here (all but those whose identification did not converge).
         unsolved: Of them, those that could not be solved here (cannot be assembled or commanded).
-        noise_failure: Failure of the tracker noise alone here (0 without a calibration).
+        noise_failure: Failure of the tracker noise alone here (0 without a calibration; the joint
+            failure with a joint claim).
         linear_gap_m: Largest difference of the pose's figures over the machines (mean, p95, p99 of
             Δλ), exact against the linear ``L δ + N ν`` (``J η`` under ``ideal``) of the same draws
             [m], as the study compares its rows (NaN: no linear figure, mode ``none``).
@@ -81,6 +97,11 @@ class PoseCheck:
             (else: the linear model is not valid here; use the exact figure).
         verdict: One of :data:`VERDICTS`.
         reason: Why, for ``cannot hold here`` and ``no claim here`` (empty otherwise).
+        mean_tilt_rad: Mean tilt Δα of the tool axis over the solved machines here [rad].
+        tilt_measured: Share of the machines beyond Δα* here (NaN: the design claims no Δα).
+        tilt_gap_rad: Largest difference of the pose's figures of Δα (mean, p95, p99), exact
+            against the linear model of the same draws [rad] (NaN: no linear tilt, which the
+            study keeps under ``calibrated`` only).
     """
 
     index: int
@@ -97,6 +118,9 @@ class PoseCheck:
     linear_valid: bool
     verdict: str
     reason: str = ""
+    mean_tilt_rad: float = float("nan")
+    tilt_measured: float = float("nan")
+    tilt_gap_rad: float = float("nan")
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +147,11 @@ class ContractCheck:
             interval ``(f, low, high)``.
         aggregate_claimed: The claimed failure over the grid (pooled poses; NaN: no such claim).
         wall_time_s: Wall time of the simulation [s].
+        hybrid: Whether the machine is a hybrid (Δλ and Δα at its TCP).
+        orientation_target_rad: Δα* when the claim is the joint reliability of Δλ and Δα [rad]
+            (None: the claim is Δλ's alone).
+        dalpha_rad: Shape (K, m): the tilt Δα of the tool axis of every machine at every grid
+            pose [rad] (NaN: unsolved).
     """
 
     mechanism: str
@@ -139,6 +168,20 @@ class ContractCheck:
     aggregate: tuple[float, float, float]
     aggregate_claimed: float
     wall_time_s: float
+    hybrid: bool = False
+    orientation_target_rad: float | None = None
+    dalpha_rad: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def task(self) -> str:
+        """What a machine must meet at a pose, in words."""
+        where = "the TCP" if self.hybrid else "P"
+        if self.orientation_target_rad is None:
+            return f"Δλ ≤ {self.target_m * 1e6:.4g} µm at {where}"
+        return (
+            f"Δλ ≤ {self.target_m * 1e6:.4g} µm at {where} and Δα ≤ "
+            f"{self.orientation_target_rad * 1e6:.4g} µrad of the tool axis, jointly"
+        )
 
     @property
     def holds(self) -> bool:
@@ -211,7 +254,7 @@ def check_contract(
     """Build ``machines`` machines at the design's tolerances and check its claim at every grid pose.
 
     Args:
-        design: A :func:`pkmtol.allocate` result (not a hybrid's).
+        design: A :func:`pkmtol.allocate` result (a module's or a hybrid's).
         machines: K.
         seed: Machine ``k`` draws from ``SeedSequence(seed).spawn(K)[k]``.
         executor: Where the machines are simulated (None: serial); the numbers do not depend on it.
@@ -221,7 +264,6 @@ def check_contract(
 
     Raises:
         InvalidArgumentError: ``machines`` or ``chunk`` not an integer ≥ 1, ``seed`` not an integer.
-        InvalidRequestError: a hybrid machine's design (its TCP is not simulated here).
     """
     for name, value, low, what in (
         ("machines", machines, 1, "machines to build, e.g. 200"),
@@ -231,11 +273,6 @@ def check_contract(
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
             raise InvalidArgumentError(name, value, f"expected an integer ≥ {low} ({what})")
     mech = design.mechanism
-    if mech.tool is not None:
-        raise InvalidRequestError(
-            f"{mech.name}: the contract check simulates the parallel module's P; a hybrid's TCP is "
-            "checked by its own verification (docs/hybrid.md)"
-        )
     plan = design.calibration_plan
     if settings is None:
         settings = plan.settings if plan is not None else _mechanism_settings(design)
@@ -253,7 +290,9 @@ def check_contract(
     tasks = [(ctx, seeds[s : s + chunk], s) for s in range(0, machines, chunk)]
     outcomes = [o for part in map_chunks(simulate_chunk, tasks, executor) for o in part]
     wall = time.perf_counter() - t0
-    exact, linear, unconverged = _per_machine(outcomes, design.compensation)
+    axis, alpha_target = _orientation_claim(design)
+    per = _per_machine(outcomes, design.compensation, axis, held.rotations)
+    exact, linear, tilt, linear_tilt, unconverged = per
     kept = np.ones(len(exact), dtype=bool)
     kept[[k for k, _ in unconverged]] = False
     blocked = ""
@@ -264,18 +303,34 @@ def check_contract(
             "only the machines that happened to converge"
         )
     maps = ctx.cases[0].maps if ctx.cases else mode_maps(grid, design.compensation)
-    predicted, noise_fail = _linear_failures(maps, design.uncompensatable, sigma, design.target_m)
+    predicted, noise_fail = _linear_failures(
+        maps,
+        design.uncompensatable,
+        sigma,
+        design.target_m,
+        None if alpha_target is None else (axis, alpha_target),
+    )
     claimed, claimed_grid, scope = claim_of(design)
-    ek, lk = exact[kept], linear[kept]
+    ek, lk, tk, ltk = exact[kept], linear[kept], tilt[kept], linear_tilt[kept]
     poses = tuple(
         _pose_check(
-            k, held.points_m[k], claimed[k], predicted[k], ek[:, k], lk[:, k], noise_fail[k], design.target_m
+            k,
+            held.points_m[k],
+            claimed[k],
+            predicted[k],
+            ek[:, k],
+            lk[:, k],
+            noise_fail[k],
+            design.target_m,
+            tilt_rad=tk[:, k],
+            linear_tilt_rad=ltk[:, k],
+            target_rad=alpha_target,
         )
         for k in range(len(held))
     )
     if blocked:
         poses = tuple(_blocked(p, blocked) for p in poses)
-    failed = np.where(np.isfinite(ek), ek > design.target_m, True)
+    failed = _failures(ek, design.target_m, tk, alpha_target)
     aggregate = machine_bootstrap(failed, np.ones_like(failed, dtype=bool))
     return ContractCheck(
         mechanism=mech.name,
@@ -292,7 +347,29 @@ def check_contract(
         aggregate=aggregate,
         aggregate_claimed=claimed_grid,
         wall_time_s=wall,
+        hybrid=mech.tool is not None,
+        orientation_target_rad=alpha_target,
+        dalpha_rad=tilt,
     )
+
+
+def _orientation_claim(design: DesignResult) -> tuple[np.ndarray, float | None]:
+    """The tool axis (platform frame; a hybrid's TCP frame) and Δα* when the claim is joint (else None)."""
+    od = design.orientation
+    axis = np.array([0.0, 0.0, 1.0]) if od is None else np.asarray(od.axis, dtype=float)
+    joint = design.claim is not None and design.claim.joint
+    target = None if od is None or not joint else od.target_rad
+    return axis, None if target is None else float(target)
+
+
+def _failures(
+    dlambda_m: np.ndarray, target_m: float, tilt_rad: np.ndarray, target_rad: float | None
+) -> np.ndarray:
+    """Which entries fail: unsolved, beyond Δλ*, or (a joint claim) beyond Δα*."""
+    failed = np.where(np.isfinite(dlambda_m), dlambda_m > target_m, True)
+    if target_rad is not None:
+        failed |= np.where(np.isfinite(tilt_rad), tilt_rad > target_rad, True)
+    return np.asarray(failed, dtype=bool)
 
 
 def _mechanism_settings(design: DesignResult) -> CalibrationSettings:
@@ -302,33 +379,54 @@ def _mechanism_settings(design: DesignResult) -> CalibrationSettings:
 
 
 def _per_machine(
-    outcomes: list[MachineOutcome], mode: str
-) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, str], ...]]:
-    """Exact and linear Δλ (K, m) [m] of every machine, and those whose identification did not converge."""
-    exact, linear, bad = [], [], []
+    outcomes: list[MachineOutcome], mode: str, axis: np.ndarray, rotations: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[tuple[int, str], ...]]:
+    """Per machine and pose (K, m): exact and linear Δλ [m], exact and linear Δα [rad]; the unconverged.
+
+    The linear Δα is the study's under ``calibrated`` (NaN otherwise: the study keeps the linear
+    rotation of its calibrations only).
+    """
+    exact, linear, tilt, linear_tilt, bad = [], [], [], [], []
     for k, o in enumerate(outcomes):
+        nan = np.full(o.before.dlambda_m.shape, np.nan)
         if mode == "calibrated":
             case = o.cases[0]
             if not case.converged:  # as its controller was left (NaN if the fit raised)
                 bad.append((k, case.failure or "not converged"))
-            exact.append(case.errors.dlambda_m)
-            linear.append(np.linalg.norm(case.linear_position_m, axis=1))
-        elif mode == "ideal":
-            exact.append(o.ideal.dlambda_m)
-            linear.append(np.linalg.norm(o.ideal_linear_m, axis=1))
+            errors = case.errors
+            lin = PoseErrors(case.linear_position_m, case.linear_rotation_rad, np.ones(len(nan), dtype=bool))
+            linear.append(lin.dlambda_m)
+            linear_tilt.append(lin.tilt_rad(axis, rotations))
         else:
-            exact.append(o.before.dlambda_m)
-            linear.append(np.full(o.before.dlambda_m.shape, np.nan))
+            errors = o.ideal if mode == "ideal" else o.before
+            linear.append(np.linalg.norm(o.ideal_linear_m, axis=1) if mode == "ideal" else nan)
+            linear_tilt.append(nan)
+        exact.append(errors.dlambda_m)
+        tilt.append(errors.tilt_rad(axis, rotations))
     m = outcomes[0].before.dlambda_m.size if outcomes else 0
     as_array = lambda rows: np.array(rows) if rows else np.zeros((0, m))  # noqa: E731
-    return as_array(exact), as_array(linear), tuple(bad)
+    return as_array(exact), as_array(linear), as_array(tilt), as_array(linear_tilt), tuple(bad)
 
 
 def _linear_failures(
-    maps: AccuracyMaps, unc: np.ndarray, sigma: np.ndarray, target_m: float
+    maps: AccuracyMaps,
+    unc: np.ndarray,
+    sigma: np.ndarray,
+    target_m: float,
+    orientation: tuple[np.ndarray, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per pose: the linear model's failure at ``sigma`` and the tracker noise's alone (m,) each."""
+    """Per pose: the linear model's failure at ``sigma`` and the tracker noise's alone (m,) each.
+
+    With ``orientation = (tool axis, Δα*)``: the joint failure of Δλ and Δα (the claim's reliability,
+    :func:`pkmtol.design.orientation.joint_reliability`).
+    """
     cols = np.asarray(unc, dtype=int)
+    if orientation is not None:
+        sub = maps.subset(cols)
+        axis, target_rad = orientation
+        r = joint_reliability(joint_covariance(sub, sigma[cols], axis), target_m, target_rad)
+        r0 = joint_reliability(joint_covariance(sub, np.zeros(cols.size), axis), target_m, target_rad)
+        return np.clip(1.0 - r, 0.0, 1.0), np.clip(1.0 - r0, 0.0, 1.0)
     noise_cov = None
     if maps.position_noise.shape[2] and maps.noise_m > 0:
         N = maps.position_noise
@@ -357,13 +455,26 @@ def _pose_check(
     linear_m: np.ndarray,
     noise_failure: float,
     target_m: float,
+    tilt_rad: np.ndarray | None = None,
+    linear_tilt_rad: np.ndarray | None = None,
+    target_rad: float | None = None,
 ) -> PoseCheck:
-    """One pose: failures across machines, Wilson interval, verdict."""
+    """One pose: failures across machines, Wilson interval, verdict.
+
+    ``tilt_rad`` / ``linear_tilt_rad`` (K,): the machines' exact and linear Δα [rad] (None: not
+    measured); ``target_rad``: Δα* of a joint claim (None: Δλ alone is judged).
+    """
     K = exact_m.size
+    nan = np.full(K, np.nan)
+    tilt = nan if tilt_rad is None else np.asarray(tilt_rad, dtype=float)
     unsolved = int(np.sum(~np.isfinite(exact_m)))
-    fails = int(np.sum(np.where(np.isfinite(exact_m), exact_m > target_m, True)))
+    fails = int(np.sum(_failures(exact_m, target_m, tilt, target_rad)))
     low, high = wilson_interval(fails, K)
     gap_m = _row_gap(exact_m, linear_m)
+    tilt_gap = _row_gap(tilt, nan if linear_tilt_rad is None else np.asarray(linear_tilt_rad, dtype=float))
+    valid = not gap_m > LINEAR_VALIDITY * target_m
+    if target_rad is not None:
+        valid = valid and not tilt_gap > LINEAR_VALIDITY * target_rad
     reason = ""
     if not np.isfinite(claimed):
         verdict, reason = "no claim here", "the design claims nothing at this pose"
@@ -377,6 +488,10 @@ def _pose_check(
         reason = f"{unsolved} of {K} machines cannot be assembled or commanded here"
     else:
         verdict = "fails"
+    solved_tilt = tilt[np.isfinite(tilt)]
+    tilt_share = float("nan")
+    if target_rad is not None and K:
+        tilt_share = float(np.mean(np.where(np.isfinite(tilt), tilt > target_rad, True)))
     return PoseCheck(
         index=k,
         point_m=np.asarray(point_m, dtype=float),
@@ -389,14 +504,17 @@ def _pose_check(
         unsolved=unsolved,
         noise_failure=float(noise_failure),
         linear_gap_m=gap_m,
-        linear_valid=not gap_m > LINEAR_VALIDITY * target_m,
+        linear_valid=valid,
         verdict=verdict,
         reason=reason,
+        mean_tilt_rad=float(solved_tilt.mean()) if solved_tilt.size else float("nan"),
+        tilt_measured=tilt_share,
+        tilt_gap_rad=tilt_gap,
     )
 
 
 def _row_gap(exact_m: np.ndarray, linear_m: np.ndarray) -> float:
-    """Largest of ``|mean|``, ``|p95|``, ``|p99|`` differences of two Δλ samples [m] (NaN if none)."""
+    """Largest ``|mean|``, ``|p95|``, ``|p99|`` difference of two samples (Δλ [m] or Δα [rad]; NaN: none)."""
     ok = np.isfinite(exact_m) & np.isfinite(linear_m)
     if not ok.any():
         return float("nan")

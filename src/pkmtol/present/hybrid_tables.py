@@ -60,7 +60,7 @@ def sub_assembly_lines(
     finite = [i for i in unc if np.isfinite(sigma[i])]
     w = r.worst_index
     variance = {i: float(np.sum((r.maps.position[w][:, i] * sigma[i]) ** 2)) for i in finite}
-    total = sum(variance.values()) or 1.0
+    total = sum(variance.values())
     rows = [
         ["sub-assembly", "errors", "toleranced", "tightest length", "tightest angle", "share of σ²[Δλ] [%]"]
     ]
@@ -73,8 +73,8 @@ def sub_assembly_lines(
             tight[unit] = (
                 f"±{display(min(values), unit, units):.4f} {display_unit(unit, units)}" if values else "-"
             )
-        share = 100.0 * sum(variance[i] for i in tol) / total
-        rows.append([g, str(len(members)), str(len(tol)), tight["m"], tight["rad"], f"{share:.1f}"])
+        share = f"{100.0 * sum(variance[i] for i in tol) / total:.1f}" if total > 0 else "-"
+        rows.append([g, str(len(members)), str(len(tol)), tight["m"], tight["rad"], share])
     detail = [["sub-assembly", "parameter", "unit", f"β={r.design_beta:g}"]]
     for g in SUB_ASSEMBLIES:
         for i in (i for i in unc if groups[i] == g):
@@ -84,7 +84,8 @@ def sub_assembly_lines(
             detail.append([g, p.name, display_unit(p.unit, units), cell])
     return [
         h("Tolerances by sub-assembly (module, wrist, tool)"),
-        f"design β = {r.design_beta:g}; shares of the variance of Δλ at the design point (TCP, pose {w})",
+        f"design β = {r.design_beta:g}; shares of the variance of Δλ at the design point (TCP, pose {w})"
+        + ("" if total > 0 else ": no toleranced parameter (the mode removes every error)"),
         "",
         table(rows),
         "",

@@ -240,12 +240,14 @@ def signoff_text(
     design = "FOSM at the design β" if r.method_design is None else f"the '{r.method_design.method}' design"
     c = so.contributions
     top = np.argsort(-c.worst)[:3]
+    names = r.pset.names
+    largest = ", ".join(f"{names[c.columns[k]]} {percent(c.worst[k])} % ({c.worst_pose[k]})" for k in top)
     out = [
         heading("Contributions to E[Δλ²] (percent contribution, Pareto)"),
         f"design: {design}; design point = grid pose {so.design_index}; the shares sum to 100 % there"
         + (" (equal: the equal-effect shape of Eq. 19)" if _equal(c.at_design) else "")
         + ". 'worst': each error's largest share over the task-space grid (its pose); largest: "
-        + ", ".join(f"{r.pset.names[c.columns[k]]} {percent(c.worst[k])} % ({c.worst_pose[k]})" for k in top),
+        + (largest or "no toleranced parameter (what is left is the tracker noise's)"),
         "",
         table(contribution_rows(r)),
     ]

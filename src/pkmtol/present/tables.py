@@ -369,12 +369,25 @@ def _md_table(rows: list[list[str]]) -> str:
 def _search_agreement(r: DesignResult) -> str:
     """How the sampled σ[Δλ_j] of the pose search compares with the analytic one, over the grid."""
     s = r.search
-    rel = np.abs(s.sigma_sampled_m - s.sigma_analytic_m) / s.sigma_analytic_m
+    condition = f"W condition number {r.grid.W_condition.min():.3g}–{r.grid.W_condition.max():.3g}"
+    m = len(s.sigma_analytic_m)
+    if not r.uncompensatable.size:  # σ[Δλ_j] = 0 everywhere: there is nothing to compare
+        return (
+            f"sampled vs analytic σ[Δλ_j] over the {m} grid points: no toleranced parameter (the mode "
+            f"removes every error, so σ[Δλ_j] = 0 for unit errors); {condition}"
+        )
+    positive = s.sigma_analytic_m > 0
+    rel = np.abs(s.sigma_sampled_m - s.sigma_analytic_m)[positive] / s.sigma_analytic_m[positive]
     se = 1.0 / np.sqrt(2.0 * (s.samples - 1))  # relative standard error of a sample std (normal)
+    where = f"the {m} grid points"
+    if not positive.all():
+        where = f"the {rel.size} of {m} grid points with σ[Δλ_j] > 0"
+    if not rel.size:
+        return f"sampled vs analytic σ[Δλ_j]: 0 at every one of the {m} grid points; {condition}"
     return (
-        f"sampled vs analytic σ[Δλ_j] over the {len(rel)} grid points: largest difference "
+        f"sampled vs analytic σ[Δλ_j] over {where}: largest difference "
         f"{100 * rel.max():.2f} %, median {100 * np.median(rel):.2f} % (sampling error ≈ {100 * se:.2f} %); "
-        f"W condition number {r.grid.W_condition.min():.3g}–{r.grid.W_condition.max():.3g}"
+        f"{condition}"
     )
 
 
@@ -486,14 +499,19 @@ def summary_text(r: DesignResult, markdown: bool = False, units: str = "mm") -> 
         if i in set(r.uncompensatable.tolist()) and math.isfinite(r.tolerances[i, col])
     ]
     tighter = sum(1 for a, b in shared if a < b)
-    factor = np.median([a / b for a, b in shared]) if shared else float("nan")
+    compared = "no tolerance to compare (the new method tolerances no parameter)"
+    if shared:
+        factor = float(np.median([a / b for a, b in shared]))
+        compared = (
+            f"{tighter} of {len(shared)} shared tolerances are tighter (median traditional/new {factor:.3f})"
+        )
+    elif r.uncompensatable.size:
+        compared = "no finite tolerance is shared"
     out += [
         h("Traditional method (all errors, no compensation), same Δλ*, β and design point"),
         f"{len(t.columns)} parameters allocated ({int(fin.sum())} finite, "
         f"{int((~fin).sum())} free '+inf') vs {len(r.uncompensatable)} by the new method; "
-        f"{tighter} of {len(shared)} shared tolerances are tighter "
-        f"(median traditional/new {factor:.3f}); traditional's own most sensitive point: "
-        + _point(r.grid.points_m[t.worst_index]),
+        f"{compared}; traditional's own most sensitive point: " + _point(r.grid.points_m[t.worst_index]),
         "",
         table(comparison_rows(r, units)),
     ]

@@ -68,8 +68,9 @@ def instrument_for(settings: CalibrationSettings, mechanism: Mechanism) -> Instr
     name = settings.instrument
     if name in ("tracker", "tracker-multi"):
         return TrackerPoints(settings.targets(mechanism), settings.noise_m, frame, name)
-    if name == "tracker-6d":
-        return Tracker6D(p, settings.noise_m, settings.orientation_noise_rad, frame)
+    if name == "tracker-6d":  # a hybrid's probe sits on the TCP frame: the TCP, or the spindle nose
+        point = settings.targets(mechanism)[0] if mechanism.tool is not None else p
+        return Tracker6D(point, settings.noise_m, settings.orientation_noise_rad, frame)
     if name == "ballbar":
         _, _, r, _, _ = task_geometry(mechanism)
         centres = np.asarray(settings.stations_m, dtype=float).reshape(-1, 3)
