@@ -150,6 +150,8 @@ def _read(path: Path, mechanism: Mechanism, n_targets: int) -> Measurements:
     for j, cell in enumerate(header):
         cell = cell.strip()
         if cell in ("pose", "target"):
+            if cell in col_of:  # two of them: which is which cannot be told
+                raise MeasurementFileError(path, header_line, cell, "column given twice")
             col_of[cell] = j
             continue
         m = _HEADER.match(cell)
