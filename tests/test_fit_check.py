@@ -52,9 +52,10 @@ def _in_frame(p: np.ndarray) -> np.ndarray:
         ("distances", 0 * LENGTHS + LENGTHS[0], LENGTHS, "repeated point", "the same length"),
         ("frame points", 0 * POINTS, POINTS, "zeros", "every measured coordinate is 0"),
         ("frame points", _in_frame(POINTS / 1e3), POINTS, "units", "1/1000 of"),
-        ("frame points", _in_frame(POINTS * 25.4), POINTS, "units", "millimetres written under [in]"),
+        ("frame points", _in_frame(POINTS * 25.4), POINTS, "units", "from inches to millimetres twice"),
         ("frame points", 0 * POINTS + _in_frame(POINTS)[0], POINTS, "repeated point", "the same point"),
         ("points", POINTS / 1e3, POINTS, "units", "metres written under [mm]"),
+        ("points", POINTS * 1e3, POINTS, "units", "or micrometres under [mm]"),
     ],
 )  # fmt: skip
 def test_values_that_cannot_be_right_are_named_before_any_fit(

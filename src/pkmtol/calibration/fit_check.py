@@ -39,14 +39,14 @@ from pkmtol.exceptions import CalibrationError, InvalidRequestError
 RMS_LIMIT = 5.0
 #: Factors between the measured and the nominal positions that point at a unit mistake.
 UNIT_FACTORS = {
-    1e3: "metres written under [mm] headers",
-    1e-3: "millimetres written under [m] headers",
+    1e3: "metres written under [mm] headers, or millimetres under [µm]",
+    1e-3: "millimetres written under [m] headers, or micrometres under [mm]",
     1e6: "metres written under [µm] headers",
     1e-6: "micrometres written under [m] headers",
     25.4: "inches written under [mm] headers",
-    1 / 25.4: "millimetres written under [in] headers",
+    1 / 25.4: "lengths converted from inches to millimetres twice",
     10.0: "centimetres written under [mm] headers",
-    0.1: "millimetres written under [cm] headers",
+    0.1: "a decimal point one place off (10× too large)",
 }
 #: Worst poses named when the residuals point at outliers.
 WORST_POSES = 5

@@ -391,7 +391,12 @@ class TreeChain:
         n = self.batch.n_joints
         off = None if offsets is None else values.vector("offsets", offsets, n)[None]
         u = values.vector("q_actuated", q_actuated, self.batch.actuated_idx.size)
-        return self.batch.forward(u[None], values.vector("q0", q0, n)[None], off).pose(0)
+        guess = values.vector("q0", q0, n)[None]
+        if self.batch.check_limits:  # the error quotes the caller's (f,) commands, not a batch of one
+            q = guess.copy()
+            q[0, self.batch.actuated_idx] = u + (0.0 if off is None else off[0, self.batch.actuated_idx])
+            self.batch._check_commands(q_actuated, q)
+        return self.batch.forward(u[None], guess, off).pose(0)
 
 
 def loop_rows_world(
