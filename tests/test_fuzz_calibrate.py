@@ -83,3 +83,49 @@ def test_a_second_target_column_is_refused(files, tmp_path):
     assert fz.run_reader(case, mech, tmp_path) == "refused"
     code, err, written = fz.run_cli(case, tmp_path, good)
     assert code == 2 and "'target': column given twice" in err and written == []
+
+
+def test_a_file_beyond_the_size_limit_is_refused_unread(files, tmp_path, monkeypatch):
+    """A measurement file larger than MAX_FILE_BYTES is refused before it is parsed."""
+    import pkmtol.calibration.measurement_files as mf
+
+    mech, good, plan, allocation = files
+    monkeypatch.setattr(mf, "MAX_FILE_BYTES", 4096)
+    big = fz.Case("good", "csv", good * 4, wrong=True)  # 14 kB of rows (duplicated poses)
+    code, err, written = fz.run_cli(big, tmp_path, good)
+    assert code == 2 and "holds more than 0 MiB" in err and written == []
+    alloc = fz.Case("allocation", "allocation", allocation + " " * 5000, wrong=True)
+    code, err, written = fz.run_cli(alloc, tmp_path, good)
+    assert code == 2 and "not an allocation.json" in err and written == []
+
+
+@pytest.mark.parametrize("option", ["--measurements", "--tolerances"])
+def test_an_endless_device_is_refused_without_running_out_of_memory(files, tmp_path, option):
+    """``--measurements /dev/zero`` read until the kernel killed pkmtol (23 GB); now 256 MiB at most.
+
+    Run in a process limited to 2 GB of address space, so that the old behaviour fails the test
+    (MemoryError) instead of the machine.
+    """
+    import resource
+    import subprocess
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))
+
+    argv = ["calibrate", str(fz.SEED_ROBOT), "--out", str(tmp_path / "out")]
+    if option == "--measurements":
+        argv += ["--measurements", "/dev/zero"]
+    else:
+        (tmp_path / "m.csv").write_text(files[1])
+        argv += ["--measurements", str(tmp_path / "m.csv"), "--prior", "--tolerances", "/dev/zero"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "pkmtol.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=limit,
+        env={**__import__("os").environ, "PYTHONPATH": str(ROOT / "src")},
+        stdin=subprocess.DEVNULL,
+    )
+    assert proc.returncode == 2, proc.stderr[-500:]
+    assert "/dev/zero" in proc.stderr and "holds more than 256 MiB" in proc.stderr, proc.stderr[-500:]
