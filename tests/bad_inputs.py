@@ -27,6 +27,7 @@ from pkmtol import (
     DrawingSettings,
     Mechanism,
     TaskSpace,
+    TreeChain,
     allocate,
     fosm_tolerances,
     load_closed_loop,
@@ -36,6 +37,7 @@ from pkmtol import (
     perturbed_limb_models,
     sign_off,
     sweep,
+    tree_from_mechanism,
     verify,
     write_outputs,
 )
@@ -162,6 +164,15 @@ def _forward_below_limit(tmp: Path) -> Any:
     u = pose.q_all[chain.actuated_idx].copy()
     u[0] = 0.39
     return chain.forward(u, pose.q_all)
+
+
+def _tree_forward_below_limit(tmp: Path) -> Any:
+    """The seed robot as one loop tree, limb 1's slide commanded 10 mm below its lower limit (0.4 m)."""
+    chain = TreeChain(tree_from_mechanism(seed_mech())[0])
+    home = chain.home()
+    u = home[chain.batch.actuated_idx].copy()
+    u[0] = 0.39
+    return chain.forward(u, home)
 
 
 def _mjcf_geom_nan(tmp: Path) -> Any:
@@ -466,6 +477,7 @@ CASES: list[Case] = [
     # ---- Python API: arguments of every public callable (tests/test_api_fuzz.py fuzzes them all)
     Case("Python API", "`ClosedChain.inverse(None)`", lambda t: ClosedChain(seed_mech()).inverse(None), IA, ("target_m", "numbers"), {"argument": "target_m"}),  # type: ignore[arg-type]
     Case("Python API", "`ClosedChain.forward` driving an actuator beyond its limits", _forward_below_limit, IA, ("q_actuated", "limb1_p3", "outside its limits [0.4, 1.6]"), {"argument": "q_actuated"}),
+    Case("Python API", "`TreeChain.forward` driving an actuator beyond its limits", _tree_forward_below_limit, IA, ("q_actuated", "limb1_p3", "outside its limits [0.4, 1.6]"), {"argument": "q_actuated"}),
     Case("Python API", "`mech.constraint_models(5)`", lambda t: seed_mech().constraint_models(5), IA, ("models", "list of pin.Model"), {"argument": "models"}),  # type: ignore[arg-type]
     Case("Python API", "`perturbed_limb_models(mech, None)`", lambda t: perturbed_limb_models(seed_mech(), None), IA, ("eps", "one per limb"), {"argument": "eps"}),  # type: ignore[arg-type]
     Case("Python API", "`load_mechanism(folder, urdf_texts=5)`", lambda t: load_mechanism(SEED, urdf_texts=5), IA, ("urdf_texts", "mapping"), {"argument": "urdf_texts"}),  # type: ignore[arg-type]
@@ -538,6 +550,17 @@ def calibrate_zeros(tmp: Path) -> Any:
     return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
 
 
+def calibrate_millimetres_as_metres(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: 1e3 * y)
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
+def calibrate_two_target_columns(tmp: Path) -> Any:
+    data = measured_at_grid(tmp, lambda y: y)
+    data.write_text(data.read_text(encoding="utf-8").replace("pose,", "target,", 1), encoding="utf-8")
+    return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
+
+
 def calibrate_offset(tmp: Path) -> Any:
     data = measured_at_grid(tmp, lambda y: y + np.array([0.05, 0.0, 0.0]))
     return cli_run(["calibrate", str(robot(tmp)), "--measurements", str(data), "--out", str(tmp / "cal")])
@@ -577,8 +600,11 @@ def other_robots_allocation(tmp: Path) -> Any:
 
 CASES += [
     Case("Calibration data", "`calibrate --measurements` with every coordinate 0", calibrate_zeros, PoorFitError, ("measured.csv", "every measured coordinate is 0", "--accept-poor-fit"), {"cause": "zeros"}),
+    Case("Calibration data", "`calibrate --measurements` with every coordinate 1000× the nominal", calibrate_millimetres_as_metres, PoorFitError, ("measured.csv", "before any fit", "about 1000× the nominal ones", "micrometres under [mm]"), {"cause": "units"}),
+    Case("Calibration data", "`calibrate --measurements` with two `target` columns", calibrate_two_target_columns, E.MeasurementFileError, ("measured.csv", "'target': column given twice"), {"column": "target"}),
     Case("Calibration data", "`calibrate --measurements` read 50 mm off the base frame", calibrate_offset, PoorFitError, ("measured.csv", "rigid offset of the tracker's frame", "--tracker-frame identify"), {"cause": "frame offset"}),
     Case("Calibration data", "`calibrate --measurements` with a coordinate of 1e300", calibrate_huge_coordinate, E.MeasurementFileError, ("measured.csv", "column 'z'", "not a measurement"), {"column": "z"}),
+    Case("Calibration data", "`calibrate --measurements /dev/zero` (it read until the kernel killed it)", cli("calibrate", "{robot}", "--measurements", "/dev/zero", "--out", "{tmp}/cal"), E.MeasurementFileError, ("/dev/zero", "holds more than 256 MiB")),
     Case("Calibration data", "`calibrate --measurements` naming a folder", cli("calibrate", "{robot}", "--measurements", "{tmp}", "--out", "{tmp}/cal"), E.MeasurementFileError, ("is a folder",)),
     Case("Calibration data", "`calibrate --tolerances` with another robot's allocation.json", other_robots_allocation, E.InvalidRequestError, ("'tricept', not of 'r2rps_ups'",)),
     Case("Calibration data", "`calibrate --tolerances` with `--measurements` but no `--prior`", cli("calibrate", "{robot}", "--measurements", "{tmp}/m.csv", "--tolerances", "{tmp}/a.json", "--out", "{tmp}/cal"), IA, ("--tolerances", "give --prior"), {"argument": "--tolerances"}),

@@ -206,3 +206,43 @@ def test_hybrid_forward_refuses_a_wrist_joint_beyond_its_limits(fx) -> None:
     assert err.value.joint == "wrist_c" and err.value.value == pytest.approx(np.pi + 0.1)
     pose, oMt = h.forward(u, home.q_tool, home.module.q_all)  # at home: the home TCP
     assert np.abs(oMt.translation - home.oMt.translation).max() < 1e-9
+
+
+# --- TreeChain.forward / TreeBatch.forward and the joint limits (as ClosedChain.forward) -------
+
+
+def test_tree_forward_refuses_an_actuator_beyond_its_limits_as_closed_chain_does(fx) -> None:
+    chain, home = fx.tchain, fx.tchain.home()
+    idx = chain.batch.actuated_idx
+    u = home[idx].copy()
+    u[0] = chain.batch.lower[idx[0]] - 0.01  # 10 mm below the slide's lower limit (0.4 m)
+    with pytest.raises(E.InvalidArgumentError) as err:
+        chain.forward(u, home)
+    assert err.value.argument == "q_actuated"
+    words = str(err.value)
+    assert "limb1_p3" in words and "0.39" in words and "[0.4, 1.6]" in words and "check_limits=False" in words
+    # the batch names the problem; an offset that takes the actual value beyond the limit is refused too
+    offsets = np.zeros((2, home.size))
+    offsets[1, idx[0]] = u[0] - home[idx[0]]
+    with pytest.raises(E.InvalidArgumentError, match=r"row 1, entry 0, actuator 'limb1_p3'"):
+        chain.batch.forward(np.tile(home[idx], (2, 1)), np.tile(home, (2, 1)), offsets)
+    # a solver built with check_limits=False (a perturbed machine) still drives it there
+    loose = pkmtol.TreeBatch(fx.tree, check_limits=False)
+    sols = loose.forward(u[None], home[None])
+    assert sols.errors[0] is None and np.isclose(sols.q[0, idx[0]], 0.39)
+
+
+def test_tree_forward_gives_a_joint_limit_error_for_a_passive_joint_beyond_its_limits(fx) -> None:
+    batch = pkmtol.TreeBatch(fx.tree)
+    home = batch.chain.home()
+    idx = batch.actuated_idx
+    passive = next(i for i in range(home.size) if i not in set(idx.tolist()) and abs(home[i]) > 1e-3)
+    batch.upper = batch.upper.copy()
+    batch.upper[passive] = home[passive] - 1e-3  # the solution at home is now beyond it
+    sols = batch.forward(np.tile(home[idx], (2, 1)), np.tile(home, (2, 1)))
+    assert all(isinstance(e, E.JointLimitError) for e in sols.errors)
+    assert sols.errors[0].joint == fx.tree.joint_names[passive]
+    with pytest.raises(E.JointLimitError):
+        batch.chain.forward(home[idx], home)
+    back = fx.tchain.forward(home[idx], home)  # the unchanged solver: the home pose, within limits
+    assert np.abs(back.q_all - home).max() < 1e-9

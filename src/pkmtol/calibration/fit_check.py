@@ -4,15 +4,23 @@ A calibration that does not fit its data must not become a calibrated machine. :
 looks at an identification's result and, when it is poor, says what is most likely wrong with the
 data, in this order:
 
-* every measured coordinate is 0 (an empty export);
-* a unit: the measured positions are a power of ten (or 25.4) times the nominal ones;
-* every pose measured the same point (the tracker lost the target and kept its last reading);
+* every measured value is 0 (an empty export);
+* a unit: the measured values are a power of ten (or 25.4) times the nominal ones;
+* every pose measured the same value (the instrument lost the target and kept its last reading);
 * a frame offset: a rigid motion of the tracker's frame, added to the machine's model, explains
   the residuals (``--tracker-frame identify`` identifies it);
 * outliers by pose: the poses with the largest residuals are named.
 
+Which of them apply depends on what the instrument measures (``values``): a registered tracker's
+positions in K (``points``: all five), a tracker's positions in its own identified frame
+(``frame points``: the unit is read from the spread of the points, which a rigid frame keeps; no
+frame offset), a ballbar's lengths (``distances``: zeros, unit, the same length everywhere,
+outliers), anything else (a probe's touches, a 6-D tracker: outliers).
+
 A fit is poor when it did not converge, or when its residual RMS after the fit is more than
-:data:`RMS_LIMIT` times the stated noise.
+:data:`RMS_LIMIT` times the stated noise. The first three causes do not need the fit:
+:func:`data_verdict` finds them from the measured and nominal values alone, so that
+``pkmtol calibrate`` refuses such a file before it spends the fit on it.
 
 >>> FitVerdict(False, "", "", 1e-5, 5e-5).poor
 False
@@ -25,23 +33,25 @@ from pathlib import Path
 
 import numpy as np
 
-from pkmtol.exceptions import CalibrationError
+from pkmtol.exceptions import CalibrationError, InvalidRequestError
 
 #: A fit whose residual RMS exceeds this many times the stated noise σ_m is poor.
 RMS_LIMIT = 5.0
 #: Factors between the measured and the nominal positions that point at a unit mistake.
 UNIT_FACTORS = {
-    1e3: "metres written under [mm] headers",
-    1e-3: "millimetres written under [m] headers",
+    1e3: "metres written under [mm] headers, or millimetres under [µm]",
+    1e-3: "millimetres written under [m] headers, or micrometres under [mm]",
     1e6: "metres written under [µm] headers",
     1e-6: "micrometres written under [m] headers",
     25.4: "inches written under [mm] headers",
-    1 / 25.4: "millimetres written under [in] headers",
+    1 / 25.4: "lengths converted from inches to millimetres twice",
     10.0: "centimetres written under [mm] headers",
-    0.1: "millimetres written under [cm] headers",
+    0.1: "a decimal point one place off (10× too large)",
 }
 #: Worst poses named when the residuals point at outliers.
 WORST_POSES = 5
+#: What an instrument's values are, for the causes that apply (see the module docstring).
+VALUE_KINDS = ("points", "frame points", "distances", "")
 
 
 class PoorFitError(CalibrationError):
@@ -97,6 +107,7 @@ def fit_verdict(
     scale: np.ndarray | None = None,
     labels: tuple[str, ...] = (),
     lines: np.ndarray | None = None,
+    values: str = "points",
 ) -> FitVerdict:
     """Judge an identification from real data.
 
@@ -106,78 +117,157 @@ def fit_verdict(
         rms_after_m: Residual RMS per coordinate at the estimate [m].
         noise_m: The stated measurement noise σ_m per coordinate [m].
         residuals_m: Shape (N, ...): residuals at the estimate, first axis the poses [m or rad].
-        measured_m: Shape (N, t, 3): measured target positions in K [m] (a tracker; None for
-            other instruments: only the outliers are then looked for).
-        residuals_before_m: Shape (N, t, 3): measured − nominal [m] (with ``measured_m``).
+        measured_m: Shape (N, ...): the measured values, first axis the poses: a tracker's target
+            positions (N, t, 3) [m], a ballbar's lengths (N, 1) [m]; None: only the outliers are
+            looked for.
+        residuals_before_m: Shape of ``measured_m``: measured − nominal [m].
         H: Shape (3·N·t, p): the identification Jacobian of the controller model's columns (for
-            the frame-offset check; None: not checked).
+            the frame-offset check of ``points``; None: not checked).
         scale: Shape (p,): its column scales [m or rad].
         labels: The pose labels (for the outliers' names).
         lines: Shape (N,): the file line of each pose.
+        values: What ``measured_m`` holds, one of :data:`VALUE_KINDS` (which causes apply).
 
     Returns:
         The verdict; ``poor`` is False for a converged fit within :data:`RMS_LIMIT` σ_m.
     """
     limit = RMS_LIMIT * float(noise_m)
     rms = float(rms_after_m)
+    per, noise = ("coordinate", " tracker") if "points" in values else ("value", "n instrument")
     if converged and np.isfinite(rms) and rms <= limit:
         return FitVerdict(False, "", "", rms, limit)
     head = (
         f"the identification did not converge in {iterations} iterations"
         if not converged
         else "the identification converged"
-    ) + f", leaving a residual RMS of {_um(rms)} per coordinate against a tracker noise of {_um(noise_m)}"
+    ) + f", leaving a residual RMS of {_um(rms)} per {per} against a{noise} noise of {_um(noise_m)}"
     if converged or rms > limit:
         head += f" (the limit is {RMS_LIMIT:g}× the noise, {_um(limit)})"
-    cause, why = _diagnosis(rms, limit, residuals_m, measured_m, residuals_before_m, H, scale, labels, lines)
+    cause, why = "", ""
+    if measured_m is not None and residuals_before_m is not None:
+        M = np.asarray(measured_m, dtype=float)
+        P = M - np.asarray(residuals_before_m, dtype=float)  # the nominal values
+        cause, why = _value_causes(M, P, limit, values)
+        if not cause and values == "points" and H is not None and scale is not None:
+            shift = _frame_offset(
+                np.asarray(residuals_before_m, dtype=float).reshape(-1),
+                P.reshape(-1, 3),
+                H,
+                scale,
+                rms,
+                limit,
+            )
+            if shift is not None:
+                t, angle = shift
+                cause, why = (
+                    "frame offset",
+                    (
+                        f"a rigid offset of the tracker's frame (about {_mm3(t)} and {1e3 * angle:.3g} mrad) "
+                        "explains the residuals: the tracker does not read in the base frame K. Give "
+                        "--tracker-frame identify to identify its transform with the machine, or register "
+                        "the tracker to the base"
+                    ),
+                )
+    if not cause:
+        cause, why = "outliers", _outliers(residuals_m, labels, lines)
     if not converged and rms <= limit and cause == "outliers":
         cause = "not converged"
     return FitVerdict(True, cause, f"{head}: {why}", rms, limit)
 
 
-def _diagnosis(
-    rms: float,
-    limit: float,
-    residuals: np.ndarray,
-    measured: np.ndarray | None,
-    before: np.ndarray | None,
-    H: np.ndarray | None,
-    scale: np.ndarray | None,
-    labels: tuple[str, ...],
-    lines: np.ndarray | None,
-) -> tuple[str, str]:
-    if measured is not None and before is not None:
-        M = np.asarray(measured, dtype=float).reshape(-1, 3)
-        P = M - np.asarray(before, dtype=float).reshape(-1, 3)  # the nominal positions
-        if not np.any(M):
-            return "zeros", (
-                "every measured coordinate is 0 — the file holds no measurements; check the tracker's export"
-            )
-        spread_m = float(np.sqrt(np.mean(np.sum((M - M.mean(axis=0)) ** 2, axis=1))))
-        spread_p = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
-        unit = _unit_factor(M, P)
-        if unit is not None:
-            factor, what = unit
-            return "units", (
-                f"the measured positions are about {_ratio(factor)} the nominal ones: {what}? "
-                "Correct the unit in the column headers"
-            )
-        if spread_m <= limit < spread_p:
-            return "repeated point", (
-                f"every pose measured the same point {_mm3(M.mean(axis=0))}, while the nominal positions "
-                f"spread over {_um(spread_p)}: the tracker did not follow the target; re-measure"
-            )
-        if H is not None and scale is not None:
-            shift = _frame_offset(np.asarray(before, dtype=float).reshape(-1), P, H, scale, rms, limit)
-            if shift is not None:
-                t, angle = shift
-                return "frame offset", (
-                    f"a rigid offset of the tracker's frame (about {_mm3(t)} and {1e3 * angle:.3g} mrad) "
-                    "explains the residuals: the tracker does not read in the base frame K. Give "
-                    "--tracker-frame identify to identify its transform with the machine, or register "
-                    "the tracker to the base"
-                )
-    return "outliers", _outliers(residuals, labels, lines)
+def data_verdict(
+    measured: np.ndarray, nominal: np.ndarray, noise_m: float, values: str = "points"
+) -> FitVerdict:
+    """Judge measured values before any fit: all zero, in the wrong unit, or the same at every pose.
+
+    These data cannot be right whatever the machine's errors are (they are millimetres at most),
+    so no fit is needed to refuse them.
+
+    Args:
+        measured: Shape (N, ...): the measured values, first axis the poses [m].
+        nominal: The same shape: the nominal machine's values at the same commands [m].
+        noise_m: The stated noise σ_m per value [m].
+        values: What they are, one of :data:`VALUE_KINDS`.
+
+    Returns:
+        A poor verdict (``zeros``, ``units`` or ``repeated point``), or a good one: the fit decides.
+
+    >>> p = np.array([[0.1, 0.0, 1.0], [0.0, 0.2, 1.1], [-0.1, 0.0, 0.9]])
+    >>> data_verdict(p / 1e3, p, 1e-5).cause
+    'units'
+    >>> data_verdict(p + 2e-5, p, 1e-5).poor
+    False
+    """
+    limit = RMS_LIMIT * float(noise_m)
+    M, P = np.asarray(measured, dtype=float), np.asarray(nominal, dtype=float)
+    cause, why = _value_causes(M, P, limit, values)
+    if not cause:
+        return FitVerdict(False, "", "", float("nan"), limit)
+    return FitVerdict(True, cause, f"the data cannot be right, before any fit: {why}", float("nan"), limit)
+
+
+def _value_causes(M: np.ndarray, P: np.ndarray, limit: float, values: str) -> tuple[str, str]:
+    """The cause the measured values ``M`` and the nominal ones ``P`` show by themselves, or ``("", "")``."""
+    if values not in VALUE_KINDS:
+        raise InvalidRequestError(
+            f"values must be one of {', '.join(map(repr, VALUE_KINDS))}, got {values!r}"
+        )
+    if (
+        not values
+        or M.size == 0
+        or M.shape != P.shape
+        or not (np.all(np.isfinite(M)) and np.all(np.isfinite(P)))
+    ):
+        return "", ""
+    what, device = ("length", "ballbar") if values == "distances" else ("coordinate", "tracker")
+    if not np.any(M):
+        return "zeros", (
+            f"every measured {what} is 0 — the file holds no measurements; check the {device}'s export"
+        )
+    width = 1 if values == "distances" else 3
+    Mv, Pv = M.reshape(-1, width), P.reshape(-1, width)
+    spread_m = float(np.sqrt(np.mean(np.sum((Mv - Mv.mean(axis=0)) ** 2, axis=1))))
+    spread_p = float(np.sqrt(np.mean(np.sum((Pv - Pv.mean(axis=0)) ** 2, axis=1))))
+    unit = _frame_unit(Mv, Pv, spread_m, spread_p) if values == "frame points" else _unit_factor(Mv, Pv)
+    if unit is not None:
+        factor, meaning = unit
+        of = {
+            "points": "the measured positions are about {} the nominal ones",
+            "frame points": "the measured positions spread over about {} what the nominal ones spread over "
+            "(a tracker frame moves them, but keeps their distances)",
+            "distances": "the measured lengths are about {} the nominal ones",
+        }[values].format(_ratio(factor))
+        return "units", f"{of}: {meaning}? Correct the unit in the column headers"
+    if spread_m <= limit < spread_p:
+        seen = _mm3(Mv.mean(axis=0)) if width == 3 else f"{1e3 * float(Mv.mean()):.4g} mm"
+        noun = "point" if width == 3 else "length"
+        return "repeated point", (
+            f"every pose measured the same {noun} {seen}, while the nominal {noun}s spread over "
+            f"{_um(spread_p)}: the instrument did not follow the target; re-measure"
+        )
+    return "", ""
+
+
+def _frame_unit(M: np.ndarray, P: np.ndarray, spread_m: float, spread_p: float) -> tuple[float, str] | None:
+    """The unit factor of points in another (rigid) frame: the ratio of their spreads, if scaling fits."""
+    if spread_m <= 0 or spread_p <= 0 or len(M) < 3:
+        return None
+    k = spread_p / spread_m
+    for factor, meaning in UNIT_FACTORS.items():
+        if abs(k / factor - 1.0) < 0.1:
+            scaled, plain = _rigid_misfit(k * M, P), _rigid_misfit(M, P)
+            if scaled < 0.1 * plain:
+                return factor, meaning
+    return None
+
+
+def _rigid_misfit(source: np.ndarray, target: np.ndarray) -> float:
+    """RMS distance left after the best rigid motion of ``source`` onto ``target`` (Kabsch) [m]."""
+    s, t = source - source.mean(axis=0), target - target.mean(axis=0)
+    u, _, vt = np.linalg.svd(s.T @ t)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return float(np.sqrt(np.mean(np.sum((s @ R.T - t) ** 2, axis=1))))
 
 
 def _unit_factor(M: np.ndarray, P: np.ndarray) -> tuple[float, str] | None:

@@ -10,6 +10,7 @@ and Gauss–Newton on exact kinematics fits the machine and the nuisance togethe
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -71,8 +72,12 @@ def calibrate_instrument_data(
     sigma: np.ndarray | None = None,
     chain: ClosedChain | None = None,
     grid: Sweep | None = None,
+    check: Callable[[PoseMaps], None] | None = None,
 ) -> InstrumentCalibration:
     """Identify the controller model (and the instrument's nuisance) from measured data.
+
+    ``check`` is called with the nominal maps at the measured poses before the fit; it may raise
+    to refuse the data without fitting them (``pkmtol calibrate``: :func:`data_verdict`).
 
     Raises:
         MeasurementFileError: commands outside the limits or unreachable, or fewer measured values
@@ -129,6 +134,8 @@ def calibrate_instrument_data(
         settings.noise_m,
         settings.rank_tolerance,
     )
+    if check is not None:
+        check(maps)
     result = identify_with(
         mechanism, pset, ident, maps, inst, measurements.values, scale[columns] if settings.prior else None
     )

@@ -150,6 +150,8 @@ def _read(path: Path, mechanism: Mechanism, n_targets: int) -> Measurements:
     for j, cell in enumerate(header):
         cell = cell.strip()
         if cell in ("pose", "target"):
+            if cell in col_of:  # two of them: which is which cannot be told
+                raise MeasurementFileError(path, header_line, cell, "column given twice")
             col_of[cell] = j
             continue
         m = _HEADER.match(cell)
@@ -334,16 +336,43 @@ def _group_rows(U: np.ndarray) -> np.ndarray:
     return out
 
 
+#: The most a measurement or allocation file may hold [bytes]; more is refused unread, not read
+#: until memory runs out (``--measurements /dev/zero`` was killed by the kernel at 23 GB).
+MAX_FILE_BYTES = 256 * 2**20
+
+
+def read_limited(path: Path, limit: int | None = None) -> bytes | None:
+    """The bytes of ``path``, or None when it holds more than ``limit`` (default :data:`MAX_FILE_BYTES`).
+
+    Raises:
+        OSError: it cannot be opened or read.
+    """
+    limit = MAX_FILE_BYTES if limit is None else limit
+    with path.open("rb") as f:
+        data = f.read(limit + 1)
+    return None if len(data) > limit else data
+
+
 def csv_rows(path: Path) -> list[tuple[int, list[str]]]:
     """The non-empty CSV rows of ``path`` with their 1-based line numbers (every measurement format's reader).
 
     Raises:
-        MeasurementFileError: a folder, a missing or unreadable file, not UTF-8, not CSV.
+        MeasurementFileError: a folder, a missing or unreadable file, one larger than
+            :data:`MAX_FILE_BYTES`, not UTF-8, not CSV.
     """
     if path.is_dir():
         raise MeasurementFileError(path, 0, "", "is a folder; give the measurement CSV file")
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        data = read_limited(path)
+        if data is None:
+            raise MeasurementFileError(
+                path,
+                0,
+                "",
+                f"holds more than {MAX_FILE_BYTES // 2**20} MiB (a device or an endless stream?); a "
+                "tracker file of 10⁶ rows is about 120 MB: give the session's file, or split it",
+            )
+        text = data.decode("utf-8-sig")
     except FileNotFoundError as err:
         raise MeasurementFileError(path, 0, "", "file not found") from err
     except UnicodeDecodeError as err:

@@ -8,6 +8,8 @@ kinematics fits the controller model (:func:`pkmtol.calibration.identification.i
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -111,6 +113,7 @@ def calibrate_measurements(
     sigma: np.ndarray | None = None,
     chain: ClosedChain | None = None,
     grid: Sweep | None = None,
+    check: Callable[[PoseMaps], None] | None = None,
 ) -> RealCalibration:
     """Identify the controller model from measured data.
 
@@ -124,6 +127,8 @@ def calibrate_measurements(
         sigma: Expected size of every parameter (column scaling, prior); default manufacturing σ.
         chain: Solver workspace (created if None).
         grid: The task-space grid sweep (created if None).
+        check: Called with the nominal maps at the measured poses before the fit; it may raise to
+            refuse the data without fitting them (``pkmtol calibrate``: :func:`data_verdict`).
 
     Raises:
         MeasurementFileError: commands outside the limits or unreachable, or fewer measured
@@ -136,18 +141,7 @@ def calibrate_measurements(
     scale = settings.manufacturing_sigma(pset) if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, settings.manufacturing_sigma(pset))
     columns = settings.controller_columns(pset, classes)
-    grid_maps = pose_maps(grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection)
-    H_grid = grid_maps.measurement_rows(targets).reshape(-1, len(pset))
-    pool = identifiability(
-        H_grid,
-        columns,
-        pset.names,
-        pset.units,
-        scale,
-        len(grid_maps),
-        settings.noise_m,
-        settings.rank_tolerance,
-    )
+    pool = _pool_identifiability(mechanism, pset, settings, chain, grid, targets, columns, scale)
     if mechanism.tool is not None:  # a hybrid: its TCP at the commands (calibration/hybrid_poses.py)
         sw: Sweep = measured_sweep(mechanism, pset, grid, measurements.commands, path, measurements.lines)
     else:
@@ -168,6 +162,8 @@ def calibrate_measurements(
     ident = identifiability(
         H, columns, pset.names, pset.units, scale, len(maps), settings.noise_m, settings.rank_tolerance
     )
+    if check is not None:
+        check(maps)
     result = identify(
         mechanism,
         pset,
@@ -182,3 +178,45 @@ def calibrate_measurements(
     return RealCalibration(
         measurements=measurements, maps=maps, H=H, ident=ident, result=result, pool_rank=pool.rank
     )
+
+
+#: The pool's identifiability per grid sweep (the grid's QR is the largest fixed cost of a run).
+_POOLS: weakref.WeakKeyDictionary[Sweep, dict[tuple, Identifiability]] = weakref.WeakKeyDictionary()
+
+
+def _pool_identifiability(
+    mechanism: Mechanism,
+    pset: ParameterSet,
+    settings: CalibrationSettings,
+    chain: ClosedChain,
+    grid: Sweep,
+    targets: np.ndarray,
+    columns: np.ndarray,
+    scale: np.ndarray,
+) -> Identifiability:
+    """Identifiability of the controller model over the grid, once per grid sweep and settings."""
+    key = (
+        tuple(pset.names),
+        np.asarray(targets, dtype=float).tobytes(),
+        np.asarray(columns).tobytes(),
+        np.asarray(scale, dtype=float).tobytes(),
+        float(settings.noise_m),
+        float(settings.rank_tolerance),
+    )
+    per_grid = _POOLS.setdefault(grid, {})
+    if key not in per_grid:
+        grid_maps = pose_maps(
+            grid, chain.actuated_idx, mechanism.reference_point_m, mechanism.task_projection
+        )
+        H_grid = grid_maps.measurement_rows(targets).reshape(-1, len(pset))
+        per_grid[key] = identifiability(
+            H_grid,
+            columns,
+            pset.names,
+            pset.units,
+            scale,
+            len(grid_maps),
+            settings.noise_m,
+            settings.rank_tolerance,
+        )
+    return per_grid[key]

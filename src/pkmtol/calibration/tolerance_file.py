@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from pkmtol.calibration.measurement_files import MAX_FILE_BYTES, read_limited
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.error_model.parameters import ParameterSet
 from pkmtol.exceptions import InvalidRequestError, MechanismFormatError
@@ -35,7 +36,14 @@ def read_tolerances(
             parameter names match none of this one's.
     """
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        data = read_limited(path)
+        if data is None:
+            raise MechanismFormatError(
+                path,
+                "-",
+                f"holds more than {MAX_FILE_BYTES // 2**20} MiB: not an allocation.json of `pkmtol allocate`",
+            )
+        doc = json.loads(data.decode("utf-8"))
     except (OSError, ValueError) as err:
         raise MechanismFormatError(path, "-", f"not an allocation.json of `pkmtol allocate` ({err})") from err
     if not isinstance(doc, dict):

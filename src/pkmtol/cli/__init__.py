@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import signal
 import sys
 import warnings
@@ -121,6 +122,7 @@ def _show_warning(
 _SHOW_WARNING = warnings.showwarning
 
 
+@functools.lru_cache(maxsize=1)  # built once a process: main() may run many times (notebooks, tests)
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pkmtol",

@@ -4,25 +4,29 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from pkmtol.calibration.fit_check import FitVerdict, PoorFitError, fit_verdict
+from pkmtol.calibration.fit_check import FitVerdict, PoorFitError, data_verdict, fit_verdict
 from pkmtol.calibration.hybrid_export import calibrated_files
 from pkmtol.calibration.hybrid_poses import check_instrument, with_tracker_on
 from pkmtol.calibration.instrument_data import calibrate_instrument_data
 from pkmtol.calibration.instrument_files import instrument_plan_csv, read_instrument_measurements
 from pkmtol.calibration.instruments import instrument_for
+from pkmtol.calibration.maps import PoseMaps
 from pkmtol.calibration.measurement_files import plan_csv, read_measurements
 from pkmtol.calibration.real_data import calibrate_measurements
 from pkmtol.calibration.settings import CalibrationSettings
 from pkmtol.calibration.study_limits import check_calibration_request
 from pkmtol.calibration.tolerance_file import read_tolerances
 from pkmtol.calibration.urdf_export import write_calibrated_folder
-from pkmtol.calibration.workflow import design_sigma, grid_classes, plan_report, simulate
+from pkmtol.calibration.workflow import design_sigma, plan_report, simulate
+from pkmtol.cli import robot_cache
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
+from pkmtol.cli.robot_cache import RobotGrid, robot_grid
 from pkmtol.design.budget import available_memory
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet
@@ -35,7 +39,6 @@ from pkmtol.exceptions import (
     OutputError,
 )
 from pkmtol.executor import Executor
-from pkmtol.model.loader import load_mechanism
 from pkmtol.model.mechanism import Mechanism
 from pkmtol.present.calibration_tables import (
     dumps,
@@ -144,12 +147,13 @@ def _tolerances(
 def _instrument_data(
     mech: Mechanism,
     pset: ParameterSet,
-    classes: list[str],
+    grid: RobotGrid,
     settings: CalibrationSettings,
     args: argparse.Namespace,
     out: Path,
 ) -> list[tuple[Path, bytes]]:
     """Identify from the data of an instrument other than a registered tracker; the files to write."""
+    classes = list(grid.classes)
     inst = instrument_for(settings, mech)
     stations = len(getattr(inst, "centres_m", [0]))
     meas = read_instrument_measurements(
@@ -159,10 +163,31 @@ def _instrument_data(
     if settings.prior:
         tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
         sigma = design_sigma(pset, classes, settings, tol)
-    cal = calibrate_instrument_data(mech, pset, classes, settings, meas, args.measurements, sigma)
+    values = _VALUES.get(inst.name, "")
+    if inst.name in ("tracker", "tracker-multi"):  # its own frame: identified with the machine
+        values = "frame points"
+    check = _data_check(
+        args,
+        meas.values,
+        lambda m: inst.measure(m.origins_m, m.rotations, m.station_index, np.zeros(inst.nuisance_count)),
+        values,
+        settings.noise_m,
+    )
+    cal = calibrate_instrument_data(
+        mech, pset, classes, settings, meas, args.measurements, sigma, grid.chain, grid.sweep, check
+    )
     r = cal.result
     verdict = fit_verdict(
-        r.converged, r.iterations, r.rms_after_m, settings.noise_m, r.residuals_m, labels=meas.labels
+        r.converged,
+        r.iterations,
+        r.rms_after_m,
+        settings.noise_m,
+        r.residuals_m,
+        meas.values if values else None,
+        r.residuals_before_m if values else None,
+        labels=meas.labels,
+        lines=meas.lines,
+        values=values,
     )
     note = _judged(verdict, args)
     files = [
@@ -181,6 +206,35 @@ def _instrument_data(
         print(f"pkmtol: warning: no calibrated URDFs: {err}", file=sys.stderr)
     print(note + instrument_text(cal), end="")
     return files
+
+
+#: What an instrument's values are, for the fit check's causes (``fit_check.VALUE_KINDS``).
+_VALUES = {"ballbar": "distances"}
+
+
+def _target_points(maps: PoseMaps, targets_m: np.ndarray) -> np.ndarray:
+    """The nominal positions (N, t, 3) in K of the platform's targets at the maps' poses [m]."""
+    return maps.origins_m[:, None, :] + np.einsum("kab,tb->kta", maps.rotations, targets_m)
+
+
+def _data_check(
+    args: argparse.Namespace,
+    measured: np.ndarray,
+    nominal: Callable[[PoseMaps], np.ndarray],
+    values: str,
+    noise_m: float,
+) -> Callable[[PoseMaps], None] | None:
+    """Before the fit: refuse zeros, a wrong unit or a repeated value (not with ``--accept-poor-fit``)."""
+    if args.accept_poor_fit or not values:
+        return None
+
+    def check(maps: PoseMaps) -> None:
+        model = np.asarray(nominal(maps), dtype=float).reshape(np.shape(measured))
+        verdict = data_verdict(measured, model, noise_m, values)
+        if verdict.poor:
+            raise PoorFitError(args.measurements, verdict.cause, verdict.problem)
+
+    return check
 
 
 def _judged(verdict: FitVerdict, args: argparse.Namespace) -> str:
@@ -207,7 +261,9 @@ def _json_with(doc: dict, verdict: FitVerdict) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = apply_tool_options(load_mechanism(args.robot), args)
+    mech = apply_tool_options(
+        robot_cache.mechanism(args.robot), args
+    )  # loaded once while its files are unchanged
     if args.tracker_on is not None:  # a hybrid's tracker on the TCP or the spindle nose
         mech = with_tracker_on(mech, args.tracker_on)
     for name, value, low in (
@@ -281,21 +337,28 @@ def _outputs(
     out: Path,
 ) -> list[tuple[Path, bytes]]:
     """Compute what ``args`` asks for and print it; the files of the run, rendered in memory."""
-    classes = grid_classes(mech, pset)
+    grid = robot_grid(mech, pset)  # one grid sweep for the classes and the nominal solutions
+    classes = list(grid.classes)
     files: list[tuple[Path, bytes]] = []
     figures: dict[str, object] = {}
     registered = (
         settings.instrument in ("tracker", "tracker-multi") and settings.tracker_frame == "registered"
     )
     if args.measurements is not None and not registered:
-        files += _instrument_data(mech, pset, classes, settings, args, out)
+        files += _instrument_data(mech, pset, grid, settings, args, out)
     elif args.measurements is not None:
         meas = read_measurements(args.measurements, mech, settings.targets(mech).shape[0])
         sigma = None
         if settings.prior:
             tol, _ = _tolerances(mech, pset, args.tolerances, args.seed, settings)
             sigma = design_sigma(pset, classes, settings, tol)
-        cal = calibrate_measurements(mech, pset, classes, settings, meas, args.measurements, sigma)
+        targets = settings.targets(mech)
+        check = _data_check(
+            args, meas.measured_m, lambda m: _target_points(m, targets), "points", settings.noise_m
+        )
+        cal = calibrate_measurements(
+            mech, pset, classes, settings, meas, args.measurements, sigma, grid.chain, grid.sweep, check
+        )
         r = cal.result
         verdict = fit_verdict(
             r.converged,

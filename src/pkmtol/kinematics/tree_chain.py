@@ -25,6 +25,7 @@ import pinocchio as pin
 import pkmtol.values as values
 from pkmtol.exceptions import (
     ConvergenceError,
+    InvalidArgumentError,
     JointLimitError,
     KinematicsError,
     LoopMismatchError,
@@ -60,7 +61,8 @@ class TreeBatch:
 
     Args:
         tree: The mechanism.
-        check_limits: Check the joint limits of every inverse solution.
+        check_limits: Check the joint limits of every solution, and the actuators' commands of
+            :meth:`forward` (as :class:`ClosedChain` does).
     """
 
     def __init__(self, tree: LoopTree, check_limits: bool = True) -> None:
@@ -143,15 +145,51 @@ class TreeBatch:
             q_actuated: Shape (B, f): actuator readings, in the order of ``tree.actuated``.
             guesses: Shape (B, n): initial guesses for all joints.
             offsets: Shape (B, n): joint zero offsets (only the actuated entries matter).
+
+        Returns:
+            The solutions; a problem's error is a :class:`ConvergenceError`,
+            :class:`SingularPoseError` or, with ``check_limits``, a :class:`JointLimitError` (a
+            passive joint beyond its limits at the solution), as for :meth:`inverse`.
+
+        Raises:
+            InvalidArgumentError: with ``check_limits``, an actuator (reading + offset) outside its
+                limits (as :meth:`ClosedChain.forward`; names the problem and the actuator).
         """
         q = values.array_of_shape("guesses", guesses, (None, self.n_joints)).copy()
         act = self.actuated_idx
-        q[:, act] = values.array_of_shape("q_actuated", q_actuated, (len(q), act.size))
+        u = values.array_of_shape("q_actuated", q_actuated, (len(q), act.size))
+        q[:, act] = u
         if offsets is not None:
             q[:, act] += values.array_of_shape("offsets", offsets, q.shape)[:, act]
+        if self.check_limits:
+            self._check_commands(q_actuated, q)
         free = np.ones(self.n_joints, dtype=bool)
         free[self.actuated_idx] = False
-        return self._newton(q, free, None, "forward kinematics")
+        sols = self._newton(q, free, None, "forward kinematics")
+        if not self.check_limits:
+            return sols
+        errors = list(sols.errors)
+        for k, err in enumerate(errors):
+            if err is None:
+                errors[k] = self.limit_violation(sols.q[k], sols.p_m[k])
+        return replace(sols, errors=tuple(errors))
+
+    def _check_commands(self, q_actuated: object, q: np.ndarray) -> None:
+        """Refuse actuator values (readings + offsets, in ``q`` (B, n)) outside their limits."""
+        act = self.actuated_idx
+        outside = (q[:, act] < self.lower[act] - 1e-12) | (q[:, act] > self.upper[act] + 1e-12)
+        if not outside.any():
+            return
+        b, k = (int(x) for x in np.argwhere(outside)[0])
+        i = int(act[k])
+        where = f"row {b}, entry {k}" if len(q) > 1 else f"entry {k}"
+        raise InvalidArgumentError(
+            "q_actuated",
+            q_actuated,
+            f"{where}, actuator '{self.tree.joint_names[i]}' of '{self.tree.name}', would be at "
+            f"{q[b, i]:.6g} [rad or m], outside its limits [{self.lower[i]:.6g}, {self.upper[i]:.6g}]; "
+            "command values within the URDF limits (or build the solver with check_limits=False)",
+        )
 
     def predict(self, sols: Solutions, index: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
         """First-order guesses for ``targets_m`` from solved problems ``index``: ``q + A⁻¹[0; Δp]``."""
@@ -353,7 +391,12 @@ class TreeChain:
         n = self.batch.n_joints
         off = None if offsets is None else values.vector("offsets", offsets, n)[None]
         u = values.vector("q_actuated", q_actuated, self.batch.actuated_idx.size)
-        return self.batch.forward(u[None], values.vector("q0", q0, n)[None], off).pose(0)
+        guess = values.vector("q0", q0, n)[None]
+        if self.batch.check_limits:  # the error quotes the caller's (f,) commands, not a batch of one
+            q = guess.copy()
+            q[0, self.batch.actuated_idx] = u + (0.0 if off is None else off[0, self.batch.actuated_idx])
+            self.batch._check_commands(q_actuated, q)
+        return self.batch.forward(u[None], guess, off).pose(0)
 
 
 def loop_rows_world(
