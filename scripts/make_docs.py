@@ -1,6 +1,6 @@
 """Regenerate (or check) the generated blocks of the docs pages: every number comes from a command.
 
-A page marks a block as
+A page (``docs/*.md`` or ``README.md``) marks a block as
 
     <!-- generated: NAME inputs=HASH -->
     ...what the generator NAME printed...
@@ -8,10 +8,23 @@ A page marks a block as
 
 and :data:`GENERATORS` says how NAME is made: a command (``pkmtol ...`` or a script), run in a
 fresh process at the repository root with this worktree's ``src`` first on the path and
-``COLUMNS=100``. ``HASH`` is the SHA-256 (first 16 hex digits) of the generator's inputs: every
-file of ``src/pkmtol``, this script, and the generator's own inputs (the robots and scripts it
-reads). So ``--check`` is cheap (no command runs): a block is stale when its recorded hash differs
-from its inputs' hash today, i.e. when the code or the robot changed since it was generated.
+``COLUMNS=100``. ``HASH`` is the SHA-256 (first 16 hex digits) of what determines the block's
+output, and of nothing else, so that a refactor elsewhere leaves the block fresh:
+
+* the generator's command text (as shown on the page);
+* the files it reads (``Generator.inputs``: the robot folder, the scripts it runs);
+* the source of the generator in this script: its ``make`` function and, recursively, every
+  function and constant of this script that it names (:func:`script_parts`), plus the source file
+  of any ``pkmtol`` function this script calls itself (``fit_text``);
+* the source files of the modules its commands actually imported, measured when it was last
+  generated: each command runs with ``python -X importtime``, and the ``pkmtol`` modules (and the
+  ``scripts/`` modules) named in that log are recorded per generator in :data:`IMPORTS`
+  (``docs/data/generated_inputs.json``).
+
+The recorded module list is sound as long as the imports are static: a command can only import a
+new module if one of the files it imported before changed (or its inputs did), and that already
+changes the hash, so the block is regenerated and its list re-measured. So ``--check`` is cheap
+(no command runs): a block is stale when its recorded hash differs from its inputs' hash today.
 ``tests/test_docs.py`` runs the check, and regenerates the cheap blocks (a few seconds each) and
 compares them verbatim.
 
@@ -26,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import inspect
 import json
 import os
 import re
@@ -38,11 +52,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from types import CodeType, FunctionType
 
 from pkmtol.present.terminal import fit_text
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
+#: Per generator, the repository files (``src/pkmtol/...``, ``scripts/...``) its commands imported.
+IMPORTS = DOCS / "data" / "generated_inputs.json"
 SEED = "robots/r2rps_ups"
 BLOCK = re.compile(
     r"<!-- generated: (?P<name>[\w-]+) inputs=(?P<hash>\w+) -->\n(?P<body>.*?)<!-- end -->", re.S
@@ -69,11 +86,14 @@ class Generator:
 
 
 def run(command: str, cwd: Path = ROOT, columns: int = 100) -> tuple[str, float, float]:
-    """Run ``command`` (``pkmtol`` → this Python's ``-m pkmtol.cli``): (stdout, wall [s], CPU [s])."""
+    """Run ``command`` (``pkmtol`` → this Python's ``-m pkmtol.cli``): (stdout, wall [s], CPU [s]).
+
+    The process runs with ``-X importtime``; the repository modules it imported are added to
+    :data:`_imported` (see :func:`generate`).
+    """
     words = command.split()
-    argv = (
-        [sys.executable, "-m", "pkmtol.cli", *words[1:]] if words[0] == "pkmtol" else [sys.executable, *words]
-    )
+    tail = ["-m", "pkmtol.cli", *words[1:]] if words[0] == "pkmtol" else words
+    argv = [sys.executable, "-X", "importtime", *tail]
     env = dict(
         os.environ,
         COLUMNS=str(columns),
@@ -85,9 +105,37 @@ def run(command: str, cwd: Path = ROOT, columns: int = 100) -> tuple[str, float,
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    log = [line for line in done.stderr.splitlines() if line.startswith("import time:")]
+    _imported.update(module_files(line.rpartition("|")[2].strip() for line in log))
+    entry = ROOT / ("src/pkmtol/cli/__main__.py" if words[0] == "pkmtol" else words[0])
+    if entry.is_file():  # run as __main__, so not in the log
+        _imported.add(str(entry.relative_to(ROOT)))
     if done.returncode not in (0, 1):
-        raise SystemExit(f"make_docs: `{command}` failed ({done.returncode}):\n{done.stderr}")
+        stderr = "\n".join(line for line in done.stderr.splitlines() if not line.startswith("import time:"))
+        raise SystemExit(f"make_docs: `{command}` failed ({done.returncode}):\n{stderr}")
     return done.stdout, wall, cpu
+
+
+#: The repository files imported by the commands run since :func:`generate` began.
+_imported: set[str] = set()
+
+
+def module_files(modules: object) -> set[str]:
+    """The repository files (relative paths) of the module names ``modules`` that live here.
+
+    ``pkmtol.a.b`` is ``src/pkmtol/a/b.py`` or ``src/pkmtol/a/b/__init__.py``; a top-level name
+    that is a file of ``scripts/`` (a script importing its neighbour) is that file. Others (the
+    standard library, numpy, Pinocchio) are not inputs of this repository.
+    """
+    found = set()
+    for name in modules:  # type: ignore[attr-defined]
+        parts = str(name).split(".")
+        candidates = [ROOT / "scripts" / f"{name}.py"] if len(parts) == 1 else []
+        if parts[0] == "pkmtol":
+            base = ROOT / "src" / Path(*parts)
+            candidates = [base.with_suffix(".py"), base / "__init__.py"]
+        found |= {str(c.relative_to(ROOT)) for c in candidates if c.is_file()}
+    return found
 
 
 def fenced(text: str) -> str:
@@ -357,14 +405,75 @@ GENERATORS = {
 # --- pages ---------------------------------------------------------------------------------------
 
 
-def inputs_hash(gen: Generator) -> str:
-    """SHA-256 (16 hex digits) of ``src/pkmtol``, this script and the generator's inputs."""
-    files = set((ROOT / "src" / "pkmtol").rglob("*.py")) | {Path(__file__).resolve()}
+def script_parts(gen: Generator) -> tuple[list[str], set[str]]:
+    """The parts of this script that make ``gen``'s output, and the pkmtol files it calls directly.
+
+    Starting from ``gen.make``: the source of every function of this script it names, recursively
+    (names inside nested functions and comprehensions too), and the ``repr`` of every constant
+    (strings, tuples, numbers) it names. A ``pkmtol`` function or class it names contributes the
+    source file of its module.
+    """
+    here = globals()
+    parts: dict[str, str] = {}
+    files: set[str] = set()
+
+    def names(code: CodeType) -> set[str]:
+        found = set(code.co_names)
+        for const in code.co_consts:
+            if isinstance(const, CodeType):
+                found |= names(const)
+        return found
+
+    todo = [gen.make]
+    while todo:
+        fn = todo.pop()
+        for name in sorted(names(fn.__code__)):
+            if name in parts or name not in here:
+                continue
+            value = here[name]
+            module = getattr(value, "__module__", None) or ""
+            if isinstance(value, FunctionType) and value.__module__ == __name__:
+                parts[name] = inspect.getsource(value)
+                todo.append(value)
+            elif isinstance(value, str | tuple | int | float):
+                parts[name] = f"{name} = {value!r}"
+            elif module.split(".")[0] == "pkmtol":
+                parts[name] = module
+                files |= module_files([module])
+    parts[gen.make.__name__] = inspect.getsource(gen.make)
+    return [parts[k] for k in sorted(parts)], files
+
+
+def recorded_imports() -> dict[str, list[str]]:
+    """:data:`IMPORTS`: per generator, the repository files its commands imported (empty if none)."""
+    if not IMPORTS.is_file():
+        return {}
+    return {k: list(v) for k, v in json.loads(IMPORTS.read_text(encoding="utf-8")).items()}
+
+
+def input_files(gen: Generator, imported: list[str] | None = None) -> list[str]:
+    """The files ``gen``'s hash covers: its inputs, its script's pkmtol calls, its commands' imports."""
+    files = set(recorded_imports().get(gen.name, []) if imported is None else imported)
+    files |= script_parts(gen)[1]
     for pattern in gen.inputs:
-        files |= {p for p in ROOT.glob(pattern) if p.is_file()}
-    h = hashlib.sha256(gen.command.encode())
-    for path in sorted(files):
-        h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes() + b"\0")
+        files |= {str(p.relative_to(ROOT)) for p in ROOT.glob(pattern) if p.is_file()}
+    return sorted(files)
+
+
+def inputs_hash(gen: Generator, imported: list[str] | None = None) -> str:
+    """SHA-256 (16 hex digits) of what determines ``gen``'s blocks (the module docstring lists it).
+
+    Args:
+        gen: The generator.
+        imported: The files its commands imported (default: as recorded in :data:`IMPORTS`).
+    """
+    h = hashlib.sha256(gen.command.encode() + b"\0")
+    for part in script_parts(gen)[0]:
+        h.update(part.encode() + b"\0")
+    for name in input_files(gen, imported):
+        path = ROOT / name
+        body = path.read_bytes() if path.is_file() else b"<missing>"
+        h.update(name.encode() + b"\0" + body + b"\0")
     return h.hexdigest()[:16]
 
 
@@ -379,7 +488,8 @@ def generator_of(block: str) -> Generator | None:
 
 
 def pages() -> list[Path]:
-    return sorted(DOCS.glob("*.md"))
+    """The pages that may hold generated blocks: ``docs/*.md`` and ``README.md``."""
+    return [*sorted(DOCS.glob("*.md")), ROOT / "README.md"]
 
 
 def blocks(text: str) -> list[re.Match[str]]:
@@ -399,15 +509,18 @@ def stale() -> list[str]:
     return out
 
 
-def generate(gen: Generator) -> dict[str, str]:
+def generate(gen: Generator) -> tuple[dict[str, str], list[str]]:
+    """``gen``'s blocks, and the repository files its commands imported (measured)."""
+    _imported.clear()
     with tempfile.TemporaryDirectory() as tmp:
-        return gen.make(Path(tmp))
+        made = gen.make(Path(tmp))
+    return made, sorted(_imported)
 
 
 def write(gen: Generator) -> list[str]:
-    """Regenerate ``gen``'s blocks in every page; returns the ``page: block`` written."""
-    made = generate(gen)
-    digest = inputs_hash(gen)
+    """Regenerate ``gen``'s blocks in every page, record its imports; returns the ``page: block`` written."""
+    made, imported = generate(gen)
+    digest = inputs_hash(gen, imported)
     written = []
     for page in pages():
         text = page.read_text(encoding="utf-8")
@@ -420,10 +533,18 @@ def write(gen: Generator) -> list[str]:
 
         new = BLOCK.sub(fill, text)
         if new != text:
-            tmp = page.with_suffix(".md.tmp")
-            tmp.write_text(new, encoding="utf-8")
-            tmp.replace(page)
+            _replace(page, new)
+    record = recorded_imports()
+    record[gen.name] = imported
+    _replace(IMPORTS, json.dumps(dict(sorted(record.items())), indent=1, ensure_ascii=False) + "\n")
     return written
+
+
+def _replace(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole (a temporary file renamed over it)."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)
 
 
 def main(argv: list[str] | None = None) -> int:
