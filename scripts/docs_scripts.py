@@ -131,6 +131,8 @@ def _figaroh(tmp: Path) -> dict[str, str]:
     named = names.splitlines()
     k = next(i for i, line in enumerate(named) if line.startswith("pkmtol base parameters:"))
     tail = [line for line in small.splitlines() if line.strip()][-5:]
+    stop = next((i for i in range(k, len(named)) if named[i].startswith("limb1 of")), len(named))
+    names_of_first_run = [line for line in named[k:stop] if line.strip()]
 
     def value(text: str, label: str) -> str:
         """The first number after ``label`` on its line (pkmtol's column where both tools have one)."""
@@ -142,7 +144,7 @@ def _figaroh(tmp: Path) -> dict[str, str]:
     return {
         "figaroh-run": fenced(plain.rstrip("\n") + "\n\n" + noisy),
         "figaroh-small": fenced("\n".join(tail)),
-        "figaroh-names": fenced("\n".join(named[k:])),
+        "figaroh-names": fenced("\n".join(names_of_first_run)),
         "figaroh-result": (
             f"- both find **{rank} base parameters**, and their base columns span the same space (largest\n"
             f"  principal angle {value(plain, 'largest principal angle')} rad);\n"

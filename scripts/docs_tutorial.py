@@ -31,8 +31,8 @@ def _mobility(tmp: Path) -> dict[str, str]:
     toml.write_text(
         toml.read_text(encoding="utf-8").replace('actuated = ["limb3_p3"]', "actuated = []"), "utf-8"
     )
-    out, _, _ = run(f"pkmtol check {folder} --no-progress")
-    return {"tutorial-mobility": fenced(out.rstrip("\n").splitlines()[-1])}
+    out, _, _ = run(f"pkmtol check {folder} --no-progress", columns=1000)  # its last line, whole
+    return {"tutorial-mobility": fenced(fit_text(out.rstrip("\n").splitlines()[-1], 100))}
 
 
 def _errors(tmp: Path) -> dict[str, str]:
@@ -47,7 +47,7 @@ def _errors(tmp: Path) -> dict[str, str]:
 
 def _allocate(tmp: Path) -> dict[str, str]:
     """Sections 4 and 6 of the tutorial: the default design, the calibrated design and its study."""
-    out, _, _ = run(f"{ALLOCATE} --out {tmp}/out")
+    out, _, _ = run(f"{ALLOCATE} --out {tmp}/out", columns=1000)  # whole lines to read; shown at 100
     lines = [line.replace(f"{tmp}/out", "out/r2rps_ups") for line in out.rstrip("\n").splitlines()]
     head = between(lines, "pkmtol allocation", "Contributions to")
     wrote = [line for line in lines if line.startswith("wrote ")]
@@ -57,8 +57,8 @@ def _allocate(tmp: Path) -> dict[str, str]:
         "",
     ]
     claim = next(line for line in lines if line.startswith("claim ("))
-    made = {"tutorial-allocate": fenced("\n".join([*head[:-1], *note, *wrote, "", claim]))}
-    fosm, _, _ = run(f"{ALLOCATE} --method fosm --no-figures --out {tmp}/fosm")
+    made = {"tutorial-allocate": fenced(fit_text("\n".join([*head[:-1], *note, *wrote, "", claim]), 100))}
+    fosm, _, _ = run(f"{ALLOCATE} --method fosm --no-figures --out {tmp}/fosm", columns=1000)
     fosm_min = re.search(r"over the task space: min R = ([\d.]+) % \(grid pose (\d+)\)", fosm)
     n = re.search(r"(\d+) uncompensatable,", out)
     ratio = re.search(r"median traditional/new ([\d.]+)", out)
@@ -138,7 +138,7 @@ def _failures(lines: list[str], errors: str) -> str:
 
 
 def _calibrated(tmp: Path, sens4: str) -> dict[str, str]:
-    out, wall, cpu = run(CALIBRATED + f" --out {tmp}/cal")
+    out, wall, cpu = run(CALIBRATED + f" --out {tmp}/cal", columns=1000)
     lines = out.rstrip("\n").splitlines()
     shown = [lines[0], "…", *between(lines, "compensation:", "Traditional"), "…"]
     stages = next((line for line in lines if line.startswith("stage times:")), "")
@@ -151,7 +151,7 @@ def _calibrated(tmp: Path, sens4: str) -> dict[str, str]:
     if not (plan and noise and classes and floor):
         raise SystemExit("make_docs: the calibrated allocate output changed; update _calibrated")
     made = {
-        "tutorial-allocate-calibrated": fenced("\n".join(shown)),
+        "tutorial-allocate-calibrated": fenced(fit_text("\n".join(shown), 100)),
         "tutorial-allocate-calibrated-prose": (
             f"What changed against section 4: the calibration plan ({plan.group(3)} D-optimal poses, "
             f"tracker noise {noise.group(1)} mm per coordinate, the controller's {plan.group(1)} "
