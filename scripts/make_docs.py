@@ -54,7 +54,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # its neighbours, also
 
 import docs_run  # noqa: E402
 from docs_run import ROOT, SEED, SEED_FILES, module_files  # noqa: E402
-from docs_scripts import COMPENSATION_SHOWN, FIGAROH_SHOWN, _compensation, _figaroh  # noqa: E402
+from docs_scripts import COMPENSATION_SHOWN, FIGAROH_SHOWN, SWEEP, _compensation, _figaroh, _scale  # noqa: E402
 from docs_seed import COST, FOSM, SIMULATE, _cost, _fosm, _simulate  # noqa: E402
 from docs_tutorial import (  # noqa: E402
     ALLOCATE,
@@ -111,6 +111,7 @@ GENERATORS = {
         Generator("seed-simulate", SIMULATE, _simulate, SEED_FILES),
         Generator("compensation", COMPENSATION_SHOWN, _compensation, SEED_FILES),
         Generator("figaroh", FIGAROH_SHOWN, _figaroh, SEED_FILES),
+        Generator("scale", f"{SWEEP} [--workers 2]", _scale, SEED_FILES),
     )
 }  # fmt: skip
 
