@@ -70,8 +70,8 @@ def _compensation(tmp: Path) -> dict[str, str]:
         f"total cost\n  falls from {cost[col['ideal']]} to {cost[d40]}. The largest length tolerances "
         f"({longest:.2f} mm) approach the cost model's\n  default upper process limit of 1 mm: the "
         "calibration, not the machining, carries the accuracy.\n"
-        f"* The plan matters as much as the pose count: 40 random poses keep the tolerances "
-        f"{min(random):.1f}×–{max(random):.1f}× looser\n  than ideal (cost {cost[r40]}), while 15 random "
+        f"* The plan matters as much as the pose count: 40 random poses give tolerances of "
+        f"{min(random):.2f}× to {max(random):.1f}×\n  the ideal ones (cost {cost[r40]}), while 15 random "
         "poses cannot reach Δλ* at all — the noise amplified by\n  that plan alone exceeds the target at "
         "some grid pose (named error, with the floor).\n"
         "* δθ_{4,4} and δθ_{e,4}, uncompensatable under Eq. 25, are *identified* after calibration: their\n"
@@ -180,24 +180,33 @@ def _scale(tmp: Path) -> dict[str, str]:
     _, serial_wall, serial_cpu = run(SWEEP + f" --out {tmp}/serial")
     _, pool_wall, pool_cpu = run(SWEEP + f" --out {tmp}/pool --workers 2")
     variants = json.loads((tmp / "serial" / "sweep.json").read_text(encoding="utf-8"))["variants"]
-    same = [v["values"] for v in variants] == [
-        v["values"] for v in json.loads((tmp / "pool" / "sweep.json").read_text(encoding="utf-8"))["variants"]
-    ]
+    pooled = json.loads((tmp / "pool" / "sweep.json").read_text(encoding="utf-8"))["variants"]
+
+    def without_seconds(rows: list[dict]) -> list[dict]:
+        return [{k: v for k, v in row.items() if k != "seconds"} for row in rows]
+
+    same = without_seconds(variants) == without_seconds(pooled)
     seconds = [float(v["seconds"]) for v in variants]
     per_variant = sum(seconds) / len(seconds)
+    serial_part = max(0.0, serial_wall - sum(seconds))
     n, workers = 10_000, 64
     compute = n * per_variant / workers
+    share = (
+        "dominates a sweep this small"
+        if serial_part > sum(seconds)
+        else f"is {serial_part / serial_wall:.0%} of the serial run"
+    )
     return {
         "scale-sweep": (
             f"**Measured on 2 local workers** (when this page was generated, on the machine that generated "
             f"it): the {len(variants)}-variant\nsweep above took {pool_wall:.1f} s wall with `--workers 2` "
             f"against {serial_wall:.1f} s serially, for {pool_cpu:.1f} s of CPU against {serial_cpu:.1f} s"
-            + (", with the same variants" if same else "")
+            + (", and the same tables (only the `seconds` fields differ)" if same else "")
             + f". A\nvariant costs {per_variant:.3f} s (the mean of `seconds` in `sweep.json`; "
-            f"{min(seconds):.3f} s the fastest), so the command's serial\npart (start-up, the reference "
-            "design, writing the tables) dominates a sweep this small; the speed-up grows\nwith the number "
-            "of variants. With other jobs on a shared machine the second worker may find no free\ncore: "
-            "measure on your own machine before raising the default.\n"
+            f"{min(seconds):.3f} s the fastest); the command's serial\npart (start-up, the reference "
+            f"design, writing the tables: {serial_part:.1f} s) {share}; the speed-up\ngrows with the "
+            "number of variants. With other jobs on a shared machine the second worker may find no\nfree "
+            "core: measure on your own machine before raising the default.\n"
         ),
         "scale-projection": (
             f"From the sweep above ({per_variant:.3f} s per variant, serial), for 10⁴ variants on {workers} "
