@@ -223,3 +223,21 @@ def _scale(tmp: Path) -> dict[str, str]:
             "step.\n"
         ),
     }
+
+
+# --- docs/robots.md: what `pkmtol check` and `pkmtol errors` say of each bundled machine ----------
+
+ROBOTS = ("tricept", "exechon", "sprint_z3", "delta")
+ROBOT_FILES = tuple(f"robots/{r}/*" for r in ROBOTS)
+
+
+def _robots(tmp: Path) -> dict[str, str]:
+    made = {}
+    for name in ROBOTS:
+        check, _, _ = run(f"pkmtol check robots/{name} --no-progress", columns=1000)
+        errors, _, _ = run(f"pkmtol errors robots/{name}", columns=1000)
+        lines = check.rstrip("\n").splitlines()
+        k = next(i for i, line in enumerate(lines) if line.startswith("mobility:"))
+        head = errors.splitlines()[:3]
+        made[f"robots-{name}"] = fenced(fit_text("\n".join([*lines[k:], "", *head]), 100))
+    return made

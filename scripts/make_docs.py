@@ -54,7 +54,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # its neighbours, also
 
 import docs_run  # noqa: E402
 from docs_run import ROOT, SEED, SEED_FILES, module_files  # noqa: E402
-from docs_scripts import COMPENSATION_SHOWN, FIGAROH_SHOWN, SWEEP, _compensation, _figaroh, _scale  # noqa: E402
+from docs_scripts import (  # noqa: E402
+    COMPENSATION_SHOWN,
+    FIGAROH_SHOWN,
+    ROBOT_FILES,
+    SWEEP,
+    _compensation,
+    _figaroh,
+    _robots,
+    _scale,
+)
 from docs_seed import COST, FOSM, SIMULATE, _cost, _fosm, _simulate  # noqa: E402
 from docs_tutorial import (  # noqa: E402
     ALLOCATE,
@@ -112,6 +121,7 @@ GENERATORS = {
         Generator("compensation", COMPENSATION_SHOWN, _compensation, SEED_FILES),
         Generator("figaroh", FIGAROH_SHOWN, _figaroh, SEED_FILES),
         Generator("scale", f"{SWEEP} [--workers 2]", _scale, SEED_FILES),
+        Generator("robots", "pkmtol check|errors robots/<robot>", _robots, ROBOT_FILES),
     )
 }  # fmt: skip
 
