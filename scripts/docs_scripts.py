@@ -228,11 +228,12 @@ def _scale(tmp: Path) -> dict[str, str]:
 # --- docs/robots.md: what `pkmtol check` and `pkmtol errors` say of each bundled machine ----------
 
 ROBOTS = ("tricept", "exechon", "sprint_z3", "delta")
-ROBOT_FILES = tuple(f"robots/{r}/*" for r in ROBOTS)
+ROBOT_FILES = (f"{SEED}/*", *(f"robots/{r}/*" for r in ROBOTS))
 
 
 def _robots(tmp: Path) -> dict[str, str]:
-    made = {}
+    seed, _, _ = run(f"pkmtol check {SEED} --no-progress", columns=1000)
+    made = {"robots-r2rps_ups": fenced(fit_text(seed, 100))}
     for name in ROBOTS:
         check, _, _ = run(f"pkmtol check robots/{name} --no-progress", columns=1000)
         errors, _, _ = run(f"pkmtol errors robots/{name}", columns=1000)
