@@ -57,10 +57,12 @@ from docs_run import ROOT, SEED, SEED_FILES, module_files  # noqa: E402
 from docs_scripts import (  # noqa: E402
     COMPENSATION_SHOWN,
     FIGAROH_SHOWN,
+    HYBRID_SHOWN,
     ROBOT_FILES,
     SWEEP,
     _compensation,
     _figaroh,
+    _hybrid,
     _robots,
     _scale,
 )
@@ -121,6 +123,7 @@ GENERATORS = {
         Generator("compensation", COMPENSATION_SHOWN, _compensation, SEED_FILES),
         Generator("figaroh", FIGAROH_SHOWN, _figaroh, SEED_FILES),
         Generator("scale", f"{SWEEP} [--workers 2]", _scale, SEED_FILES),
+        Generator("hybrid", HYBRID_SHOWN, _hybrid, (*SEED_FILES, "robots/r2rps_ups_wrist/*")),
         Generator("robots", "pkmtol check|errors robots/<robot>", _robots, ROBOT_FILES),
     )
 }  # fmt: skip
