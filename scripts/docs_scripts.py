@@ -24,6 +24,11 @@ COMPENSATION_SHOWN = f"python {COMPENSATION}; {COST_CALIBRATED}; {COST_STUDY}"
 FIGAROH_SHOWN = f"python {FIGAROH} [--noise-um 10] [--error-scale 0.1] [--names]"
 
 
+def _split(line: str) -> list[str]:
+    """A text table row's cells (split at runs of two or more spaces)."""
+    return re.split(r"\s{2,}", line.strip())
+
+
 def _markdown_rows(text: str, header_start: str) -> tuple[list[str], list[list[str]]]:
     """The header and rows' cells of the Markdown table whose header starts with ``header_start``."""
     lines = text.splitlines()
@@ -241,7 +246,34 @@ def _robots(tmp: Path) -> dict[str, str]:
         k = next(i for i, line in enumerate(lines) if line.startswith("mobility:"))
         head = errors.splitlines()[:3]
         made[f"robots-{name}"] = fenced(fit_text("\n".join([*lines[k:], "", *head]), 100))
+    made["robots-delta-calibration"] = _delta_calibration()
     return made
+
+
+def _delta_calibration() -> str:
+    """The Delta's predicted calibration with the compensatable and with the full controller."""
+    rows = {}
+    for controller in ("compensatable", "full"):
+        out, _, _ = run(f"pkmtol calibrate robots/delta --controller {controller} --no-figures", columns=1000)
+        lines = out.splitlines()
+        k = next(i for i, line in enumerate(lines) if line.startswith("predicted after calibration"))
+        head = re.search(r"(\d+) held-out random poses", lines[k])
+        header = re.split(r"\s{2,}", lines[k + 1].strip())
+        row = next(_split(line) for line in lines[k + 3 :] if line.startswith("d-optimal"))
+        poses = re.search(r"(\d+) d-optimal poses", out)
+        rows[controller] = (dict(zip(header, row, strict=True)), head.group(1) if head else "?", poses)
+    comp, held, poses = rows["compensatable"]
+    full = rows["full"][0]
+    n = poses.group(1) if poses else "?"
+    return (
+        "A rod's length alone is uncompensatable, but the *mean* length of an arm's two rods moves P as a\n"
+        "compensatable error would: a controller that identifies only the compensatable parameters cannot\n"
+        f"remove it (`pkmtol calibrate robots/delta --controller compensatable`, {n} D-optimal poses, the\n"
+        f"linear prediction: {comp['beyond Δλ* [%]']} % of {held} held-out poses beyond Δλ* after "
+        f"calibration, p99 {comp['p99 Δλ [µm]']} µm);\nidentifying every parameter (`controller = "
+        f'"full"`, the robot\'s `[calibration]` table: rank {full["rank"]}) leaves '
+        f"{full['beyond Δλ* [%]']} % (p99 {full['p99 Δλ [µm]']} µm).\n"
+    )
 
 
 # --- docs/hybrid.md: the module alone and the whole machine, side by side ---------------------------
