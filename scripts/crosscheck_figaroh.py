@@ -184,7 +184,7 @@ class PkmtolLimb:
 def pkmtol_fit(exp: Experiment) -> PkmtolFit:
     """Base parameters by pkmtol's pivoted QR, then Gauss–Newton on exact forward kinematics.
 
-    The Jacobian is the nominal one, frozen, as in :func:`pkmtol.calibration.identification.identify`;
+    The Jacobian is the nominal one, frozen, as :func:`pkmtol.calibration.identification.identify` starts;
     its fixed point solves ``H_Bᵀ r = 0`` at the nominal ``H_B``. The least-squares minimum of the
     same model (``J(x)ᵀ r = 0``) is found after it by scipy's Levenberg–Marquardt from that point.
     """

@@ -250,6 +250,7 @@ def test_the_command_ends_with_its_notes_and_claim(tmp_path, capsys, monkeypatch
     from pkmtol.cli import main
 
     monkeypatch.setattr(mode_verification, "CALIBRATED_EXACT_SAMPLES", 2)
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     small = ["--samples", "300", "--verification-poses", "50", "--no-figures", "--no-progress"]
     args = ["allocate", str(SEED), *small, "--compensation", "calibrated", "--exact-samples", "3"]
     assert main([*args, "--out", str(tmp_path / "a")]) == 0

@@ -18,7 +18,8 @@ SEED = ROOT / "robots" / "r2rps_ups"
 SMALL = ["--samples", "400", "--exact-samples", "5", "--verification-poses", "40", "--no-progress"]
 
 
-def test_errors_command_table_and_json(tmp_path, capsys):
+def test_errors_command_table_and_json(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     out = tmp_path / "errors.json"
     assert main(["errors", str(SEED), "--json", str(out)]) == 0
     text = capsys.readouterr().out
@@ -153,7 +154,8 @@ def test_allocate_writes_figures_and_html(tmp_path, capsys):
     assert "147 error spheres" in capsys.readouterr().out
 
 
-def test_show_html(tmp_path, capsys):
+def test_show_html(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     html = tmp_path / "show.html"
     assert main(["show", str(SEED), "--html", str(html), "--samples", "300"]) == 0
     assert html.stat().st_size > 100_000

@@ -138,9 +138,45 @@ def test_cheap_blocks_regenerate_verbatim(name):
     md = make_docs()
     gen = md.GENERATORS[name]
     assert gen.cheap
-    made = md.generate(gen)
+    made, _imported = md.generate(gen)
     on_pages = {
         m["name"]: m["body"] for page in md.pages() for m in md.blocks(page.read_text(encoding="utf-8"))
     }
     for block, text in made.items():
         assert on_pages[block] == text, f"{block}: rerun python scripts/make_docs.py --only {name}"
+
+
+def test_module_names_map_to_the_repository_files_they_load():
+    md = make_docs()
+    names = ["pkmtol", "pkmtol.units", "pkmtol.cli", "pkmtol.cli.check", "numpy", "compare_machines", "os"]
+    assert md.module_files(names) == {
+        "src/pkmtol/__init__.py",
+        "src/pkmtol/units.py",
+        "src/pkmtol/cli/__init__.py",
+        "src/pkmtol/cli/check.py",
+        "scripts/compare_machines.py",
+    }
+
+
+def test_a_block_hashes_only_the_files_its_command_imported():
+    md = make_docs()
+    gen = md.GENERATORS["tutorial-check"]
+    files = md.input_files(gen)
+    # `pkmtol check` loads the checker, not the 3D scene nor the HTML report
+    assert {"src/pkmtol/kinematics/check.py", "src/pkmtol/cli/__main__.py"} <= set(files)
+    assert "robots/r2rps_ups/mechanism.toml" in files
+    assert "src/pkmtol/present/viewer/scene.py" not in files
+    assert "src/pkmtol/present/html_report.py" not in files
+    # the recorded imports are part of the hash: another list, another hash
+    recorded = md.recorded_imports()["tutorial-check"]
+    assert md.inputs_hash(gen) == md.inputs_hash(gen, recorded) != md.inputs_hash(gen, recorded[1:])
+
+
+def test_a_generator_hashes_its_own_code_in_the_script_not_the_others():
+    md = make_docs()
+    parts, files = md.script_parts(md.GENERATORS["tutorial-check"])
+    text = "\n".join(parts)
+    assert "def _check(" in text and "def run(" in text and "def fenced(" in text
+    assert "def _allocate(" not in text and "def _machines(" not in text
+    parts, files = md.script_parts(md.GENERATORS["tutorial-allocate"])
+    assert "src/pkmtol/present/terminal.py" in files  # fit_text, called by the script itself

@@ -76,7 +76,8 @@ def test_family_reproduces_the_bundled_robot(family, tmp_path):
         assert urdf == (bundled / path.name).read_text(encoding="utf-8"), path.name
 
 
-def test_pkmtol_new_with_no_dimension_writes_the_bundled_tricept(tmp_path, capsys):
+def test_pkmtol_new_with_no_dimension_writes_the_bundled_tricept(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     out = tmp_path / "tricept"
     assert main(["new", "tricept", "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out

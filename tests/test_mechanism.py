@@ -354,7 +354,8 @@ def test_check_report_of_the_seed_robot():
             assert joint.lower <= joint.grid_min <= joint.grid_max <= joint.upper
 
 
-def test_cli_check_seed_robot(capsys):
+def test_cli_check_seed_robot(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     assert main(["check", str(SEED)]) == 0
     out = capsys.readouterr().out
     assert "reachable: 147/147 points" in out

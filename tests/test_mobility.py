@@ -37,7 +37,8 @@ def seed_with(tmp_path: Path, actuated: dict[str, str]) -> Path:
     return folder
 
 
-def test_check_with_an_actuator_removed_exits_1_and_names_how_many_are_needed(tmp_path, capsys):
+def test_check_with_an_actuator_removed_exits_1_and_names_how_many_are_needed(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     folder = seed_with(tmp_path, {"limb3": "[]"})
     assert main(["check", str(folder)]) == 1  # before: exit 2, "platform frame cannot be made to coincide"
     out = capsys.readouterr().out

@@ -207,7 +207,8 @@ def test_written_whole_or_not_at_all(result, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_allocate_report_option(tmp_path, capsys):
+def test_allocate_report_option(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines to match (piped output wraps at 100)
     out, rep = tmp_path / "out", tmp_path / "report.html"
     small = ["--samples", "400", "--exact-samples", "5", "--verification-poses", "40", "--no-progress"]
     small += ["--method", "fosm"]  # the report of the FOSM design (9 sections)

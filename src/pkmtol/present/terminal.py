@@ -9,14 +9,16 @@ with every line at most ``width`` columns:
   only numbers the rows or does not tell them apart), so every row stays on one line and every
   number keeps its header; a single
   cell too wide even so is wrapped inside its column;
-* any other long line is wrapped at spaces, its continuation lines indented two columns more
-  than the line itself.
+* any other long line (prose, notes, warnings) is wrapped at spaces with :mod:`textwrap`, its
+  continuation lines indented two columns more than the line itself; a word is never broken, so a
+  path or a URL longer than the width stays whole, on a line of its own.
 
 The width is the terminal's (:func:`terminal_width`: ``shutil.get_terminal_size``, or
-:data:`DEFAULT_WIDTH` = 100 columns when there is no terminal). :class:`FittedStream` applies
-:func:`fit_text` to what a command prints: tables always, the other lines when the output is a
-terminal (piped output keeps them whole, for ``grep`` and logs); files the commands write keep
-their full lines.
+:data:`DEFAULT_WIDTH` = 100 columns when there is no terminal: a pipe, a log). :class:`FittedStream`
+applies :func:`fit_text` to what a command prints on stdout, on a terminal and piped alike;
+machine-readable output is never fitted: the JSON, CSV, Markdown and HTML files the commands write
+keep their full lines, and so do the ``pkmtol: error:`` and ``pkmtol: warning:`` lines on stderr
+(one line per message, for ``grep``).
 """
 
 from __future__ import annotations
@@ -51,8 +53,9 @@ def fit_text(text: str, width: int | None = None, wrap_lines: bool = True) -> st
         wrap_lines: Also wrap the lines that are not tables (else they are left whole).
 
     Returns:
-        The same content, no line longer than ``width`` (a word longer than ``width`` alone is
-        broken).
+        The same content, no line longer than ``width`` except a single word longer than
+        ``width`` (a path, say), which is kept whole on a line of its own (a table cell too wide
+        for its panel is broken inside its column).
 
     >>> print(fit_text("name  alpha  beta\n----  -----  ----\nx         1     2", width=12))
     name  alpha
@@ -100,9 +103,9 @@ def _wrap(line: str, width: int) -> list[str]:
         width=width,
         initial_indent=indent,
         subsequent_indent=indent + "  ",
-        break_long_words=True,
+        break_long_words=False,
         break_on_hyphens=False,
-    ) or [line[:width]]
+    ) or [line]
 
 
 def _spans(rule: str) -> list[tuple[int, int]]:
@@ -173,14 +176,14 @@ class FittedStream:
     Args:
         stream: Where the fitted text goes (``sys.stdout``).
         width: Columns (default: :func:`terminal_width`, read once).
-        wrap_lines: Wrap the lines that are not tables too (default: when ``stream`` is a
-            terminal; piped output keeps each such line whole, for ``grep`` and logs).
+        wrap_lines: Wrap the lines that are not tables too (default: yes, on a terminal and
+            piped alike, at :data:`DEFAULT_WIDTH` without a terminal).
     """
 
-    def __init__(self, stream: TextIO, width: int | None = None, wrap_lines: bool | None = None) -> None:
+    def __init__(self, stream: TextIO, width: int | None = None, wrap_lines: bool = True) -> None:
         self.stream = stream
         self.width = terminal_width() if width is None else width
-        self.wrap_lines = self.isatty() if wrap_lines is None else wrap_lines
+        self.wrap_lines = wrap_lines
         self._pending = ""
 
     def write(self, text: str) -> int:
