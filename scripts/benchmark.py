@@ -352,6 +352,8 @@ def main() -> None:
             f"limb path {rate['delta_sweep']:,.0f}/s: "
             f"{rate['delta_tree_sweep'] / rate['delta_sweep']:.0%} of it",
             "≥ 50 % of the limb path's",
+        ),
+        (
             "hybrid IK: r2rps_ups_wrist, TCP points × tool axes (decoupled)",
             f"{len(hybrid_tcp)} poses",
             f"{rate['hybrid_ik']:,.0f} poses/s",
