@@ -48,7 +48,7 @@ EstimateRows = Callable[[Machine, Solutions, np.ndarray], Rows | None]
 STEP_TOLERANCE = 1e-8
 #: A step that raises the cost by more than this (relative) is halved.
 COST_RISE = 1e-6
-MAX_ITERATIONS = 30
+MAX_ITERATIONS = 60
 #: The size of the exact solves' round-off in a value [m]: below it a rise of the cost is noise.
 SOLVE_NOISE = 1e-13
 #: With nuisance parameters, also converged when every step is below this fraction of its estimate's
@@ -87,8 +87,10 @@ LM_START = 1e-10
 #: cost is not quadratic over their spread (a 1e-5 direction of the Tricept's probe plan offered
 #: 0.5 σ² to a step that raised the cost by 77 σ²). A stop is certified on the others.
 LM_RESOLVED = 1e-4
-#: Dampings tried in one iteration (each ten times the last) before it stops.
-MAX_DAMPINGS = 12
+#: Dampings tried in one iteration (each LM_FACTOR times the last) before it stops; the damping is
+#: divided by LM_FACTOR after a step is taken.
+MAX_DAMPINGS = 24
+LM_FACTOR = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -317,16 +319,16 @@ def gauss_newton(
                 try:
                     resid_new, q_new, new_cost = evaluate(x + step, q)
                 except IdentificationError:
-                    damping = max(10 * damping, LM_START)
+                    damping = max(LM_FACTOR * damping, LM_START)
                     continue
                 if new_cost <= cost * (1 + COST_RISE) + floor and cost - new_cost >= LM_RATIO * predicted:
                     accepted, x_new = True, x + step
                     # stationary in the directions the data resolve: the step, damped only below
                     # LM_RESOLVED of the largest singular value, offered at most CERTIFY_CHI2
                     resolved = damping <= LM_RESOLVED**2 and predicted <= certify_level(cost)
-                    damping /= 10
+                    damping /= LM_FACTOR
                     break
-                damping = max(10 * damping, LM_START)
+                damping = max(LM_FACTOR * damping, LM_START)
         for _ in range(0 if exact_jacobian else MAX_HALVINGS + 1):
             x_new = x + step
             try:
