@@ -21,7 +21,7 @@ from pkmtol.calibration.linear_system import value_weights
 from pkmtol.calibration.machine import Machine
 from pkmtol.calibration.maps import PoseMaps
 from pkmtol.error_model.parameters import ParameterSet
-from pkmtol.exceptions import IdentificationError, InvalidRequestError
+from pkmtol.exceptions import InvalidRequestError
 from pkmtol.kinematics.solutions import Solutions
 from pkmtol.model.mechanism import Mechanism
 
@@ -47,14 +47,7 @@ def model_positions(
         IdentificationError: a pose cannot be solved (names it).
     """
     targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
-    sols = machine.forward_many(commands, q0)
-    for k, err in enumerate(sols.errors):
-        if err is not None:
-            raise IdentificationError(
-                f"calibration pose {k} (commands {np.round(commands[k], 6).tolist()}): the model cannot be "
-                f"solved there ({err}); the estimate left the range where the mechanism assembles — "
-                "check the measurements of that pose and the controller model"
-            ) from err
+    sols = solved_poses(machine, commands, q0)
     out = sols.translation[:, None, :] + np.einsum("kij,tj->kti", sols.rotation, targets)
     return out, sols.q
 

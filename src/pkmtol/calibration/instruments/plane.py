@@ -32,8 +32,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from pkmtol.calibration.instruments.base import Candidates, Instrument, lever_rows
-from pkmtol.calibration.instruments.probe import POSE_NAMES, SETUP_DRAW
+from pkmtol.calibration.instruments.base import Candidates, Instrument
+from pkmtol.calibration.instruments.probe import POSE_NAMES, SETUP_DRAW, touch_rows
 from pkmtol.exceptions import InvalidRequestError
 
 #: The faces of a block by their outward normal in K (the face it stands on, ``-z``, is not touched).
@@ -171,8 +171,7 @@ class PlaneProbe(Instrument):
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
     ) -> np.ndarray:
         """``(R_A m_j)ᵀ [I, −[R b]×]`` per pose, (N, 1, 6)."""
-        _, normal = self.surface(origin, rotation, stations, nuisance)
-        return np.einsum("ka,kab->kb", normal, lever_rows(rotation, self.point_m))[:, None, :]
+        return touch_rows(self.surface(origin, rotation, stations, nuisance)[1], rotation, self.point_m)
 
     def nuisance_rows(
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray

@@ -63,6 +63,17 @@ def hemisphere(count: int, min_elevation_rad: float = 0.0) -> np.ndarray:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
+def touch_rows(normal: np.ndarray, rotation: np.ndarray, point_m: np.ndarray) -> np.ndarray:
+    """A touch's value per unit platform twist: ``nᵀ [I, −[R b]×]`` per pose, (N, 1, 6).
+
+    Args:
+        normal: Shape (N, 3): the surface's gradient at the touch, in K (unit).
+        rotation: Shape (N, 3, 3): the platform's orientation.
+        point_m: Shape (3,): the probe tip's centre in the platform frame [m].
+    """
+    return np.einsum("ka,kab->kb", normal, lever_rows(rotation, point_m))[:, None, :]
+
+
 class SphereProbe(Instrument):
     """Touches on the spheres of an artifact of effective radius ``radius_m``.
 
@@ -150,8 +161,7 @@ class SphereProbe(Instrument):
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
     ) -> np.ndarray:
         """``uᵀ [I, −[R b]×]`` per pose, (N, 1, 6)."""
-        _, u = self.surface(origin, rotation, stations, nuisance)
-        return np.einsum("ka,kab->kb", u, lever_rows(rotation, self.point_m))[:, None, :]
+        return touch_rows(self.surface(origin, rotation, stations, nuisance)[1], rotation, self.point_m)
 
     def nuisance_rows(
         self, origin: np.ndarray, rotation: np.ndarray, stations: np.ndarray, nuisance: np.ndarray
