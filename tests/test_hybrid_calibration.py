@@ -608,8 +608,9 @@ def test_cli_six_d_measurements_round_trip_on_the_hybrid(hybrid, six_d, tmp_path
     assert np.abs(a.rotation - b.rotation).max() <= 1e-12
 
 
-def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys):
+def test_cli_allocate_calibrated_hybrid_with_nothing_toleranced_says_so(tmp_path, capsys, monkeypatch):
     """The whole machine's calibration identifies every error: the report says so, and prints no NaN."""
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines: piped prose wraps at 100 columns
     out = tmp_path / "out"
     args = ["allocate", str(HYBRID), "--compensation", "calibrated", "--method", "fosm"]
     fast = ["--samples", "1000", "--verification-poses", "50", "--exact-samples", "10", "--no-figures"]

@@ -106,8 +106,9 @@ def test_noise_free_identification_recovers_the_base_parameters(seed):
     assert np.abs(gap[:3]).max() < 2e-4 and np.abs(gap[3:]).max() < 1e-3
 
 
-def test_plan_output_names_what_a_plate_cannot_fix(tmp_path, capsys):
+def test_plan_output_names_what_a_plate_cannot_fix(tmp_path, capsys, monkeypatch):
     """A surface plate alone (the top face): the plan names its in-plane translation and rotation."""
+    monkeypatch.setenv("COLUMNS", "1000")  # whole lines: piped prose wraps at 100 columns
     robot = tmp_path / "robot"
     shutil.copytree(SEED, robot)
     with (robot / "mechanism.toml").open("a", encoding="utf-8") as f:

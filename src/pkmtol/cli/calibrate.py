@@ -23,10 +23,10 @@ from pkmtol.calibration.study_limits import check_calibration_request
 from pkmtol.calibration.tolerance_file import read_tolerances
 from pkmtol.calibration.urdf_export import write_calibrated_folder
 from pkmtol.calibration.workflow import design_sigma, plan_report, simulate
-from pkmtol.cli import robot_cache
 from pkmtol.cli.calibration_options import add_plan_options, plan_settings
 from pkmtol.cli.common import add_executor_options, add_tool_options, apply_tool_options, executor_from
 from pkmtol.cli.robot_cache import RobotGrid, robot_grid
+from pkmtol.cli.robot_cache import mechanism as cached_mechanism
 from pkmtol.design.budget import available_memory
 from pkmtol.design.job import DesignOptions, allocate
 from pkmtol.error_model.parameters import ParameterSet
@@ -261,9 +261,7 @@ def _json_with(doc: dict, verdict: FitVerdict) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
-    mech = apply_tool_options(
-        robot_cache.mechanism(args.robot), args
-    )  # loaded once while its files are unchanged
+    mech = apply_tool_options(cached_mechanism(args.robot), args)  # loaded once while its files are unchanged
     if args.tracker_on is not None:  # a hybrid's tracker on the TCP or the spindle nose
         mech = with_tracker_on(mech, args.tracker_on)
     for name, value, low in (
