@@ -16,17 +16,32 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import os
 import signal
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from typing import TextIO
 
-from pkmtol import __version__, executor, files
-from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep
-from pkmtol.cli.common import EXIT_ERROR, Interrupted, signals_as_interrupts
-from pkmtol.exceptions import PkmtolError, PkmtolWarning
-from pkmtol.present.terminal import FittedStream
+
+def _interrupted_while_starting(signum: int, frame: object) -> None:
+    """Ctrl-C or SIGTERM before :func:`main` runs (while the subcommands import): one line, no file."""
+    os.write(2, b"pkmtol: interrupted; nothing was written\n")
+    os._exit(128 + signum)
+
+
+# Started as the command (`pkmtol`, `python -m pkmtol.cli`): a signal during the imports below
+# (seconds on a cold start) gets the same one line as one during a run, not Python's traceback or
+# a silent death. Imported by another program, the signals are left alone.
+if sys.argv and (sys.argv[0] == "-m" or os.path.basename(sys.argv[0]) == "pkmtol"):
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+    signal.signal(signal.SIGTERM, _interrupted_while_starting)
+
+from pkmtol import __version__, executor, files  # noqa: E402
+from pkmtol.cli import allocate, calibrate, check, errors, new, show, sweep  # noqa: E402
+from pkmtol.cli.common import EXIT_ERROR, Interrupted, signals_as_interrupts  # noqa: E402
+from pkmtol.exceptions import PkmtolError, PkmtolWarning  # noqa: E402
+from pkmtol.present.terminal import FittedStream  # noqa: E402
 
 #: The subcommands in the order ``pkmtol --help`` lists them.
 SUBCOMMANDS = (check, errors, allocate, calibrate, show, sweep, new)
