@@ -264,7 +264,7 @@ def gauss_newton(
         delta[cols] = x[: cols.size]
         machine = Machine(mechanism, pset, delta)
         sols = solved_poses(machine, commands, q0)
-        solved.append((machine, sols))  # type: ignore[arg-type]
+        solved[:] = [(machine, sols)]  # type: ignore[list-item]  # only the last evaluation is read
         model = inst.measure(sols.translation, sols.rotation, stations, pi_start + x[cols.size :])
         res = inst.residual(measured, model)
         xm = x[: cols.size]
