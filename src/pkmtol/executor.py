@@ -215,6 +215,7 @@ def abort() -> None:
                 p.join(timeout=2.0)
                 if p.is_alive():
                     p.kill()
+        _forget_wakeup(pool)
     _POOLS.clear()
     for client in list(_CLIENTS.values()):
         cluster = getattr(client, "cluster", None)
@@ -224,6 +225,26 @@ def abort() -> None:
             with contextlib.suppress(Exception):
                 cluster.close(timeout=2)
     _CLIENTS.clear()
+
+
+def _forget_wakeup(pool: Any) -> None:
+    """Let a terminated pool's manager thread finish, then drop its wake-up pipe from the exit hook.
+
+    ``concurrent.futures`` writes to every pool's wake-up pipe at interpreter exit. After
+    :func:`abort` the manager thread closes that pipe as it winds down, and on Python 3.11 the
+    exit hook's write then races the close and prints "Exception ignored ... Bad file descriptor"
+    after pkmtol's one line. Joining the thread and forgetting its pipe removes the race.
+    """
+    from concurrent.futures import process as cf_process
+
+    thread = getattr(pool, "_executor_manager_thread", None)
+    if thread is None:
+        return
+    with contextlib.suppress(Exception):
+        thread.join(timeout=2.0)
+    if not thread.is_alive():  # a live thread still needs the exit hook's wake-up
+        with contextlib.suppress(Exception):
+            cf_process._threads_wakeups.pop(thread, None)
 
 
 def _dask_client(ex: Executor) -> Any:
